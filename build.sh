@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine: installs the missing Debian packages, builds in
+# Release, then does what was asked.
+#   ./build.sh          build only
+#   ./build.sh demo     build, then run the default scene (scenes/cantilever.json)
+#   ./build.sh test     build, then run the whole test suite with CTest
+#   ./build.sh bench    build, then run the benchmarks (slow; see docs/performance.md)
+set -euo pipefail
+cd "$(dirname "$0")"
+
+packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libembree-dev
+          libsuitesparse-dev libopenblas0-serial doctest-dev libbenchmark-dev
+          nlohmann-json3-dev libcli11-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "build.sh: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${missing[@]}"
+fi
+
+build_dir=${NEXDYN_BUILD_DIR:-build}
+jobs=$(nproc)
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build_dir" -j "$jobs"
+
+case "${1:-build}" in
+  build) ;;
+  demo) "$build_dir/nexdyn" run scenes/cantilever.json ;;
+  test) ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" ;;
+  bench)
+    for b in "$build_dir"/bench/bench_*; do "$b" --benchmark_min_time=0.5; done ;;
+  *) echo "usage: ./build.sh [build|demo|test|bench]" >&2; exit 2 ;;
+esac

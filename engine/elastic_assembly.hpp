@@ -1,0 +1,42 @@
+// Elastic energy, gradient and PSD-projected Hessian of all tets, assembled in parallel.
+//
+// Element kernels (kernels/elasticity) write per-tet slabs indexed by tet id; the slabs are then
+// gathered into global arrays in a fixed order (vertex -> its tet corners, CSC value -> its slab
+// entries), so every result is bitwise independent of the thread count.
+#pragma once
+
+#include "engine/model.hpp"
+#include "engine/solver/hessian_pattern.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+class ElasticAssembly {
+ public:
+  explicit ElasticAssembly(const Model& model);
+
+  // Total elastic energy at positions x (3n); +inf when a neo-Hookean tet is inverted.
+  double energy(const double* x) const;
+  // Energy, and the gradient written (not added) into grad (3n).
+  double energy_gradient(const double* x, double* grad);
+  // Gradient (3n) and the projected Hessian's values in pattern() order (no mass term).
+  void gradient_hessian(const double* x, double* grad, double* hessian_values);
+
+  const HessianPattern& pattern() const { return pattern_; }
+
+ private:
+  void gather_gradient(double* grad) const;
+  double sum_tet_energies() const;
+
+  const Model& model_;
+  HessianPattern pattern_;
+  std::vector<int64_t> corner_ptr_;      // (num_vertices + 1) CSR: vertex -> its tet corners
+  std::vector<int64_t> corners_;         // (4 num_tets) tet * 4 + corner, increasing per vertex
+  std::vector<double> tet_energy_;       // (num_tets) slab
+  std::vector<double> tet_gradient_;     // (num_tets x 12) slab
+  std::vector<double> tet_hessian_;      // (num_tets x 144) slab, column-major 12x12
+};
+
+}  // namespace nexdyn

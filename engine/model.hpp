@@ -1,0 +1,85 @@
+// Model: everything about the world that stays constant while it steps.
+//
+// MuJoCo-style flat buffers: one contiguous array per attribute, indexed by global vertex or tet
+// id, each declared once here with its shape and units. Bodies are ranges of those arrays, not
+// objects. The only writer is the scene builder (engine/scene/build_model.cpp); every stage of a
+// step reads the Model through a const reference.
+#pragma once
+
+#include "engine/integrator.hpp"
+#include "kernels/elasticity/material.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace nexdyn {
+
+struct Material {
+  std::string name;
+  MaterialModel model = MaterialModel::neohookean;
+  LameParameters lame;
+  double youngs = 0.0;   // [Pa]
+  double poisson = 0.0;  // [-]
+  double density = 0.0;  // [kg/m^3]
+};
+
+// A body is a range of vertices, tets and surface triangles/edges in the flat arrays.
+struct BodyRange {
+  int32_t vertex_begin = 0, vertex_count = 0;
+  int32_t tet_begin = 0, tet_count = 0;
+  int32_t triangle_begin = 0, triangle_count = 0;
+  int32_t edge_begin = 0, edge_count = 0;
+  int32_t scene_entry = 0;  // index of the "bodies" entry of the scene file it came from
+};
+
+// Consecutive tets sharing one material: the unit over which kernels dispatch on the model.
+struct MaterialBatch {
+  int32_t tet_begin = 0, tet_end = 0;
+  int32_t material = 0;
+};
+
+// A prescribed rigid motion of a set of vertices (a "boundary" entry of the scene):
+//   p(t) = center + v t + R(axis, omega t) (p(0) - center)
+// "fix" is the motion with v = 0 and omega = 0.
+struct DirichletMotion {
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // [m/s]
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();    // [m], a point on the rotation axis at t=0
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();     // unit vector
+  double angular_velocity = 0.0;                       // [rad/s] about axis (right-hand rule)
+};
+
+struct Model {
+  // ---- per vertex (num_vertices) -----------------------------------------------------------
+  int32_t num_vertices = 0;
+  std::vector<double> rest_positions;  // (num_vertices x 3) X [m], the scene's start positions
+  std::vector<double> mass;            // (num_vertices) lumped mass [kg]: density * volume / 4
+  std::vector<int32_t> vertex_body;    // (num_vertices) owning body id
+  std::vector<int32_t> dirichlet;      // (num_vertices) index into dirichlet_motions, -1 = free
+
+  // ---- per tet (num_tets) ------------------------------------------------------------------
+  int32_t num_tets = 0;
+  std::vector<int32_t> tets;         // (num_tets x 4) vertex ids, det[X1-X0, X2-X0, X3-X0] > 0
+  std::vector<double> Dm_inv;        // (num_tets x 9) inverse rest edge matrix, column-major [1/m]
+  std::vector<double> rest_volume;   // (num_tets) [m^3]
+  std::vector<int32_t> tet_material; // (num_tets) index into materials
+
+  // ---- surface (for output now, for contact later) -----------------------------------------
+  std::vector<int32_t> surface_triangles;  // (num_triangles x 3) outward-wound vertex ids
+  std::vector<int32_t> surface_edges;      // (num_edges x 2) vertex ids, a < b
+  std::vector<int32_t> surface_vertices;   // (num_surface_vertices) sorted vertex ids
+
+  // ---- bodies, materials, conditions -------------------------------------------------------
+  std::vector<BodyRange> bodies;
+  std::vector<Material> materials;
+  std::vector<MaterialBatch> material_batches;     // covers [0, num_tets) in order
+  std::vector<DirichletMotion> dirichlet_motions;  // one per "boundary" entry
+  Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);  // [m/s^2]
+
+  int64_t num_dofs() const { return 3 * int64_t{num_vertices}; }
+  bool has_dirichlet() const { return !dirichlet_motions.empty(); }
+};
+
+}  // namespace nexdyn

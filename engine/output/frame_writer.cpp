@@ -1,0 +1,121 @@
+// VTU / PVD / OBJ writers (see frame_writer.hpp).
+#include "engine/output/frame_writer.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+#include <system_error>
+
+namespace nexdyn {
+
+void write_file_atomically(const std::filesystem::path& path, const std::string& contents) {
+  const std::filesystem::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(tmp.string() + ": cannot open for writing");
+    out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+    out.flush();
+    if (!out) throw std::runtime_error(tmp.string() + ": write failed (disk full?)");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw std::runtime_error(path.string() + ": cannot rename into place: " + ec.message());
+}
+
+std::string frame_file_name(int64_t frame, const char* extension) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "frame_%06lld.%s", static_cast<long long>(frame), extension);
+  return buf;
+}
+
+namespace {
+// Appended raw binary data: each array is a UInt64 byte count followed by its bytes; a DataArray
+// refers to it by its offset from the start of the data block (after the '_').
+class AppendedData {
+ public:
+  template <typename T>
+  int64_t add(const T* data, size_t count) {
+    const int64_t offset = static_cast<int64_t>(bytes_.size());
+    const uint64_t size = sizeof(T) * count;
+    append(&size, sizeof(size));
+    append(data, size);
+    return offset;
+  }
+  const std::string& bytes() const { return bytes_; }
+
+ private:
+  void append(const void* p, size_t n) { bytes_.append(static_cast<const char*>(p), n); }
+  std::string bytes_;
+};
+}  // namespace
+
+std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v) {
+  AppendedData data;
+  const size_t nv = static_cast<size_t>(model.num_vertices), nt = static_cast<size_t>(model.num_tets);
+  std::vector<int32_t> offsets(nt);
+  for (size_t t = 0; t < nt; ++t) offsets[t] = static_cast<int32_t>(4 * (t + 1));
+  const std::vector<uint8_t> types(nt, 10);  // VTK_TETRA
+  const int64_t o_points = data.add(x.data(), 3 * nv);
+  const int64_t o_conn = data.add(model.tets.data(), 4 * nt);
+  const int64_t o_offsets = data.add(offsets.data(), nt);
+  const int64_t o_types = data.add(types.data(), nt);
+  const int64_t o_velocity = data.add(v.data(), 3 * nv);
+  const int64_t o_body = data.add(model.vertex_body.data(), nv);
+
+  std::string xml;
+  char buf[512];
+  xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
+         "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n";
+  std::snprintf(buf, sizeof(buf), "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", nv, nt);
+  xml += buf;
+  auto array = [&](const char* type, const char* name, int components, int64_t offset) {
+    std::snprintf(buf, sizeof(buf), "<DataArray type=\"%s\" Name=\"%s\" NumberOfComponents=\"%d\" "
+                  "format=\"appended\" offset=\"%lld\"/>\n", type, name, components,
+                  static_cast<long long>(offset));
+    xml += buf;
+  };
+  xml += "<PointData Vectors=\"velocity\">\n";
+  array("Float64", "velocity", 3, o_velocity);
+  array("Int32", "body", 1, o_body);
+  xml += "</PointData>\n<Points>\n";
+  array("Float64", "Points", 3, o_points);
+  xml += "</Points>\n<Cells>\n";
+  array("Int32", "connectivity", 1, o_conn);
+  array("Int32", "offsets", 1, o_offsets);
+  array("UInt8", "types", 1, o_types);
+  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  xml += data.bytes();
+  xml += "\n</AppendedData>\n</VTKFile>\n";
+  return xml;
+}
+
+std::string obj_document(const Model& model, const std::vector<double>& x) {
+  std::string out;
+  out.reserve(static_cast<size_t>(model.num_vertices) * 40 + model.surface_triangles.size() * 12);
+  char buf[128];
+  for (int32_t i = 0; i < model.num_vertices; ++i) {
+    const int n = std::snprintf(buf, sizeof(buf), "v %.9g %.9g %.9g\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    out.append(buf, static_cast<size_t>(n));
+  }
+  for (size_t t = 0; t + 2 < model.surface_triangles.size(); t += 3) {
+    const int n = std::snprintf(buf, sizeof(buf), "f %d %d %d\n", model.surface_triangles[t] + 1,
+                                model.surface_triangles[t + 1] + 1, model.surface_triangles[t + 2] + 1);
+    out.append(buf, static_cast<size_t>(n));
+  }
+  return out;
+}
+
+std::string pvd_document(const std::vector<std::pair<double, std::string>>& frames) {
+  std::string xml = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n";
+  char buf[512];
+  for (const auto& [time, file] : frames) {
+    std::snprintf(buf, sizeof(buf), "<DataSet timestep=\"%.17g\" group=\"\" part=\"0\" file=\"%s\"/>\n",
+                  time, file.c_str());
+    xml += buf;
+  }
+  xml += "</Collection>\n</VTKFile>\n";
+  return xml;
+}
+
+}  // namespace nexdyn

@@ -1,0 +1,30 @@
+// Frame files: VTU (VTK unstructured grid, binary appended data) per frame plus the ParaView
+// series file scene.pvd, and OBJ surfaces on request (DESIGN.md section 6).
+//
+// Every file is written to "<name>.tmp" and renamed into place, so a reader never sees a
+// half-written frame, even when the run is killed in the middle of a write.
+#pragma once
+
+#include "engine/model.hpp"
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace nexdyn {
+
+// Writes `contents` to path atomically (temporary file, flush, rename). Throws on I/O error.
+void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
+
+// frames/frame_NNNNNN.<ext>
+std::string frame_file_name(int64_t frame, const char* extension);
+
+// VTU with points, tets, and point data "velocity" and "body".
+std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v);
+// OBJ with every vertex (global numbering, 1-based in the file) and every surface triangle.
+std::string obj_document(const Model& model, const std::vector<double>& x);
+// ParaView collection of (time, relative file) pairs.
+std::string pvd_document(const std::vector<std::pair<double, std::string>>& frames);
+
+}  // namespace nexdyn

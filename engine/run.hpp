@@ -1,0 +1,39 @@
+// `nexdyn run`: steps a scene and writes stats.csv, frames and scene.pvd into the output folder.
+//
+// Honest outputs: stats.csv only exists once the run has finished every step; while running (or
+// after a failure) the rows so far are in stats.partial.csv. Frames and scene.pvd are renamed into
+// place whole, so every file that exists is complete.
+#pragma once
+
+#include "engine/scene/scene.hpp"
+#include "engine/simulation.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace nexdyn {
+
+// The exact header of stats.csv (DESIGN.md section 6); later features append columns after it.
+inline constexpr const char* kStatsHeader =
+    "step,time,kinetic_energy,elastic_energy,gravity_energy,barrier_energy,total_energy,"
+    "momentum_x,momentum_y,momentum_z,newton_iterations,contacts,min_distance,wall_seconds";
+
+struct RunOptions {
+  std::filesystem::path out_dir;  // created if missing
+  int64_t steps = -1;             // -1: the scene's time.steps
+  bool progress = false;          // draw a progress bar on stderr
+};
+
+struct RunSummary {
+  bool ok = true;
+  int64_t steps_done = 0;
+  double wall_seconds = 0.0;
+  std::string message;  // why the run stopped early
+};
+
+std::string stats_row(const StepStats& s);
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options);
+
+}  // namespace nexdyn

@@ -1,0 +1,62 @@
+// A scene: the Model and initial State built from a JSON scene file, plus the run settings.
+//
+// Every key of the file is documented in docs/scenes.md. Loading is strict: unknown keys, wrong
+// types, out-of-range values and missing files throw SceneError naming the file, the key path
+// (e.g. "bodies[2].material") and the offending value. Nothing is written while loading.
+#pragma once
+
+#include "engine/integrator.hpp"
+#include "engine/model.hpp"
+#include "engine/state.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+
+namespace nexdyn {
+
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct TimeSettings {
+  double dt = 0.01;                  // [s]
+  int64_t steps = 100;
+  IntegratorParams integrator;       // default: newmark
+  bool consistent_initial_acceleration = true;  // a0 = M^-1 f(x0); false: a0 = 0
+};
+
+struct SolverSettings {
+  double tolerance = 1e-5;  // [m/s] Newton increment divided by dt
+  int max_iterations = 100;
+};
+
+struct ContactSettings {
+  bool enabled = false;
+  double dhat = 0.0;      // [m]; 0 = default (1e-3 of the bounding-box diagonal)
+  double friction = 0.0;  // Coulomb coefficient
+  double epsv = 0.0;      // [m/s]; 0 = default
+};
+
+struct OutputSettings {
+  int64_t every = 1;  // write a frame every this many steps
+  bool vtu = true;
+  bool obj = false;
+};
+
+struct Scene {
+  std::string name;
+  std::filesystem::path file;
+  TimeSettings time;
+  SolverSettings solver;
+  ContactSettings contact;
+  OutputSettings output;
+  Model model;
+  State initial;  // x = start positions, v = body velocities, a = 0 (set by the simulation)
+};
+
+Scene load_scene(const std::filesystem::path& file);
+
+}  // namespace nexdyn

@@ -1,0 +1,145 @@
+// The stages of a time step (see simulation.hpp).
+#include "engine/simulation.hpp"
+
+#include "engine/parallel.hpp"
+
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace nexdyn {
+
+Simulation::Simulation(const Scene& scene)
+    : scene_(scene), model_(scene.model), state_(scene.initial), elastic_(scene.model),
+      potential_(scene.model, elastic_) {
+  const int64_t n = model_.num_dofs();
+  x_next_.resize(n);
+  force_.resize(n);
+  state_.a.assign(n, 0.0);
+  state_.x_tilde = state_.x;
+  // Prescribed vertices start with their prescribed velocity and acceleration.
+  prescribe(0.0, state_.x, &state_.v, &state_.a);
+  if (scene.time.consistent_initial_acceleration && !scene.time.integrator.is_static) {
+    if (!explicit_acceleration(state_.x, state_.a))
+      throw SceneError(scene.file.string() + ": the initial state has non-finite forces (inverted tet?)");
+  }
+  if (scene.time.integrator.is_static) {
+    std::fill(state_.v.begin(), state_.v.end(), 0.0);
+    std::fill(state_.a.begin(), state_.a.end(), 0.0);
+  }
+}
+
+void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>* v,
+                           std::vector<double>* a) const {
+  if (!model_.has_dirichlet()) return;
+  for (int32_t i = 0; i < model_.num_vertices; ++i) {
+    const int32_t id = model_.dirichlet[i];
+    if (id < 0) continue;
+    const DirichletMotion& m = model_.dirichlet_motions[id];
+    const Eigen::Vector3d p0 = Eigen::Vector3d::Map(&model_.rest_positions[3 * i]);
+    const Eigen::Vector3d w = m.angular_velocity * m.axis;
+    const Eigen::Vector3d r = Eigen::AngleAxisd(m.angular_velocity * t, m.axis) * (p0 - m.center);
+    Eigen::Vector3d::Map(&x[3 * i]) = m.center + m.velocity * t + r;
+    if (v) Eigen::Vector3d::Map(&(*v)[3 * i]) = m.velocity + w.cross(r);
+    if (a) Eigen::Vector3d::Map(&(*a)[3 * i]) = w.cross(w.cross(r));
+  }
+}
+
+bool Simulation::explicit_acceleration(const std::vector<double>& x, std::vector<double>& a) {
+  const double energy = elastic_.energy_gradient(x.data(), force_.data());
+  if (!std::isfinite(energy)) return false;
+  const Eigen::Vector3d& g = model_.gravity;
+  for (int32_t i = 0; i < model_.num_vertices; ++i) {
+    if (model_.dirichlet[i] >= 0) continue;
+    for (int d = 0; d < 3; ++d) {
+      const double ai = g[d] - force_[3 * i + d] / model_.mass[i];
+      if (!std::isfinite(ai)) return false;
+      a[3 * i + d] = ai;
+    }
+  }
+  return true;
+}
+
+StepOutcome Simulation::step() {
+  const auto start = std::chrono::steady_clock::now();
+  const IntegratorParams& integrator = scene_.time.integrator;
+  const double dt = scene_.time.dt;
+  const double t_next = state_.time + dt;
+  StepOutcome outcome;
+
+  predict_x_tilde(integrator, dt, state_.x, state_.v, state_.a, state_.x_tilde);
+  int iterations = 0;
+  if (integrator.is_explicit()) {
+    x_next_ = state_.x_tilde;
+    prescribe(t_next, x_next_, nullptr, nullptr);
+    std::vector<double> a_new = state_.a;
+    if (!explicit_acceleration(x_next_, a_new)) {
+      outcome = {StepStatus::non_finite, "non-finite forces after the explicit update (the step "
+                                         "is above the stability limit or a tet inverted)"};
+      return outcome;
+    }
+    update_explicit(integrator, dt, a_new, state_.v, state_.a);
+    state_.x.swap(x_next_);
+  } else {
+    if (!newton_) newton_ = std::make_unique<NewtonSolver>(model_, potential_);
+    // Start Newton from the predictor when it is a valid state (fewer iterations), else from x_n.
+    potential_.begin_step(state_.x_tilde, integrator.potential_scale(dt), !integrator.is_static);
+    x_next_ = integrator.is_static ? state_.x : state_.x_tilde;
+    prescribe(t_next, x_next_, nullptr, nullptr);
+    if (!std::isfinite(potential_.energy(x_next_.data()))) {
+      x_next_ = state_.x;
+      prescribe(t_next, x_next_, nullptr, nullptr);
+    }
+    NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
+    const NewtonResult result = newton_->solve(x_next_, settings);
+    iterations = result.iterations;
+    if (result.status != StepStatus::ok) {
+      outcome = {result.status, result.message};
+      return outcome;
+    }
+    if (integrator.is_static) {
+      state_.x.swap(x_next_);
+    } else {
+      update_implicit(integrator, dt, x_next_, state_.x_tilde, state_.v, state_.a);
+      state_.x.swap(x_next_);
+    }
+  }
+  prescribe(t_next, state_.x, integrator.is_static ? nullptr : &state_.v,
+            integrator.is_static ? nullptr : &state_.a);
+  state_.time = t_next;
+  ++state_.step;
+
+  stats_.step = state_.step;
+  stats_.time = state_.time;
+  stats_.newton_iterations = iterations;
+  measure(stats_);
+  stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+void Simulation::measure(StepStats& stats) const {
+  const std::vector<double>& x = state_.x;
+  const std::vector<double>& v = state_.v;
+  const Eigen::Vector3d& g = model_.gravity;
+  double kinetic = 0.0, gravity = 0.0;
+  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+  for (int32_t i = 0; i < model_.num_vertices; ++i) {
+    const double m = model_.mass[i];
+    const Eigen::Vector3d vi = Eigen::Vector3d::Map(&v[3 * i]);
+    kinetic += 0.5 * m * vi.squaredNorm();
+    gravity -= m * g.dot(Eigen::Vector3d::Map(&x[3 * i]));
+    momentum += m * vi;
+  }
+  stats.kinetic_energy = kinetic;
+  stats.elastic_energy = elastic_.energy(x.data());
+  stats.gravity_energy = gravity;
+  stats.barrier_energy = 0.0;
+  stats.total_energy = kinetic + stats.elastic_energy + gravity + stats.barrier_energy;
+  stats.momentum = momentum;
+  stats.contacts = 0;
+  stats.min_distance = std::numeric_limits<double>::infinity();
+}
+
+}  // namespace nexdyn

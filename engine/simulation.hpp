@@ -1,0 +1,73 @@
+// The time step: the stage list every step runs, in order.
+//
+//   1. prescribe   Dirichlet vertices move to their targets at t + dt (analytic x, v, a)
+//   2. predict     x_tilde = x + h v + alpha (1 - 2 beta) h^2 a          (integrator.cpp)
+//   3. solve       implicit: Newton on the incremental potential          (solver/newton.cpp)
+//                  explicit: x = x_tilde, a = M^-1 f(x)
+//   4. update      a, v from the integrator family                          (integrator.cpp)
+//   5. measure     energies and momentum for stats.csv
+//
+// A Simulation owns the State and the solver workspaces; the Model stays const.
+#pragma once
+
+#include "engine/elastic_assembly.hpp"
+#include "engine/incremental_potential.hpp"
+#include "engine/scene/scene.hpp"
+#include "engine/solver/newton.hpp"
+#include "engine/solver/step_status.hpp"
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <string>
+
+namespace nexdyn {
+
+// One row of stats.csv (DESIGN.md section 6).
+struct StepStats {
+  int64_t step = 0;
+  double time = 0.0;
+  double kinetic_energy = 0.0;
+  double elastic_energy = 0.0;
+  double gravity_energy = 0.0;  // -sum m g . x
+  double barrier_energy = 0.0;
+  double total_energy = 0.0;
+  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+  int newton_iterations = 0;
+  int64_t contacts = 0;
+  double min_distance = 0.0;
+  double wall_seconds = 0.0;
+};
+
+struct StepOutcome {
+  StepStatus status = StepStatus::ok;
+  std::string message;  // empty when ok
+};
+
+class Simulation {
+ public:
+  // Keeps references to scene.model; the scene must outlive the simulation.
+  explicit Simulation(const Scene& scene);
+
+  StepOutcome step();
+  const State& state() const { return state_; }
+  const StepStats& last_stats() const { return stats_; }
+  // Energies and momentum of the current state (step, time, iterations, wall time untouched).
+  void measure(StepStats& stats) const;
+
+ private:
+  void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a) const;
+  // a = M^-1 f(x) on free vertices; false if f is not finite.
+  bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
+
+  const Scene& scene_;
+  const Model& model_;
+  State state_;
+  StepStats stats_;
+  ElasticAssembly elastic_;
+  IncrementalPotential potential_;
+  std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
+  std::vector<double> x_next_, force_;
+};
+
+}  // namespace nexdyn

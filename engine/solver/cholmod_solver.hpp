@@ -1,0 +1,51 @@
+// Sparse Cholesky of the Newton system with CHOLMOD (supernodal, int64 indices).
+//
+// The symbolic analysis (fill-reducing ordering, elimination tree, supernodes) depends only on the
+// pattern, so it runs once per pattern and every Newton iteration after that pays only for the
+// numeric factorisation. The matrix is the upper triangle in CSC form (stype = +1) whose arrays
+// stay owned by the caller; this class only points CHOLMOD at them.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+struct cholmod_common_struct;
+struct cholmod_factor_struct;
+struct cholmod_dense_struct;
+
+namespace nexdyn {
+
+class CholmodSolver {
+ public:
+  CholmodSolver();
+  ~CholmodSolver();
+  CholmodSolver(const CholmodSolver&) = delete;
+  CholmodSolver& operator=(const CholmodSolver&) = delete;
+
+  // Symbolic analysis of the upper-triangular CSC pattern. Keeps pointers to the arrays.
+  void analyze(int64_t n, const int64_t* col_ptr, const int64_t* row_idx);
+  bool has_analysis() const { return factor_ != nullptr; }
+
+  // Numeric factorisation with the given values (same pattern as analyze). Returns false when the
+  // matrix is not positive definite or CHOLMOD failed; error() says why.
+  bool factorize(const double* values);
+
+  // Solves A x = b with the last factorisation. No allocation after the first call.
+  void solve(const double* b, double* x);
+
+  const std::string& error() const { return error_; }
+
+ private:
+  cholmod_common_struct* common_ = nullptr;
+  cholmod_factor_struct* factor_ = nullptr;
+  cholmod_dense_struct* x_ = nullptr;   // solve2 workspaces, reused across solves
+  cholmod_dense_struct* y_ = nullptr;
+  cholmod_dense_struct* e_ = nullptr;
+  int64_t n_ = 0;
+  const int64_t* col_ptr_ = nullptr;
+  const int64_t* row_idx_ = nullptr;
+  std::string error_;
+};
+
+}  // namespace nexdyn

@@ -1,0 +1,98 @@
+// Symbolic and numeric gather of the tet Hessian (see hessian_pattern.hpp).
+#include "engine/solver/hessian_pattern.hpp"
+
+#include "engine/parallel.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace nexdyn {
+
+HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector<int32_t>& tets) {
+  const int64_t num_tets = static_cast<int64_t>(tets.size()) / 4;
+  HessianPattern pattern;
+  pattern.num_dofs = 3 * int64_t{num_vertices};
+
+  // Vertex-level upper pattern: for every vertex J, the sorted neighbours I <= J.
+  std::vector<std::pair<int32_t, int32_t>> pairs;  // (J, I) so sorting groups by column
+  pairs.reserve(static_cast<size_t>(num_tets) * 10 + num_vertices);
+  for (int32_t v = 0; v < num_vertices; ++v) pairs.emplace_back(v, v);  // mass diagonal
+  for (int64_t t = 0; t < num_tets; ++t)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b) {
+        const int32_t va = tets[4 * t + a], vb = tets[4 * t + b];
+        pairs.emplace_back(std::max(va, vb), std::min(va, vb));
+      }
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+
+  std::vector<int64_t> vertex_col_begin(num_vertices + 1, 0);
+  for (const auto& [j, i] : pairs) ++vertex_col_begin[j + 1];
+  for (int32_t v = 0; v < num_vertices; ++v) vertex_col_begin[v + 1] += vertex_col_begin[v];
+
+  // DOF-level CSC. Column 3J+d holds, for each neighbour I < J, rows 3I..3I+2, then rows 3J..3J+d.
+  pattern.col_ptr.assign(pattern.num_dofs + 1, 0);
+  for (int32_t j = 0; j < num_vertices; ++j) {
+    const int64_t off_diagonal = vertex_col_begin[j + 1] - vertex_col_begin[j] - 1;
+    for (int d = 0; d < 3; ++d) pattern.col_ptr[3 * j + d + 1] = 3 * off_diagonal + d + 1;
+  }
+  for (int64_t c = 0; c < pattern.num_dofs; ++c) pattern.col_ptr[c + 1] += pattern.col_ptr[c];
+  pattern.row_idx.resize(pattern.col_ptr.back());
+  pattern.diagonal.resize(pattern.num_dofs);
+  for (int32_t j = 0; j < num_vertices; ++j)
+    for (int d = 0; d < 3; ++d) {
+      int64_t k = pattern.col_ptr[3 * j + d];
+      for (int64_t p = vertex_col_begin[j]; p < vertex_col_begin[j + 1]; ++p) {
+        const int32_t i = pairs[p].second;
+        const int rows = (i == j) ? d + 1 : 3;
+        for (int r = 0; r < rows; ++r) pattern.row_idx[k++] = 3 * int64_t{i} + r;
+      }
+      pattern.diagonal[3 * j + d] = k - 1;
+    }
+
+  // Value index of the entry (row 3I + r, column 3J + c) with I <= J: neighbours are sorted, so a
+  // binary search in vertex column J finds I, and rows of I are contiguous in every column of J.
+  auto value_index = [&](int32_t i, int r, int32_t j, int c) {
+    const auto first = pairs.begin() + vertex_col_begin[j];
+    const auto last = pairs.begin() + vertex_col_begin[j + 1];
+    const int64_t slot = std::lower_bound(first, last, std::make_pair(j, i)) - first;
+    return pattern.col_ptr[3 * j + c] + 3 * slot + r;
+  };
+
+  // Gather table: count, prefix-sum, fill (tets in increasing order, so sources stay sorted).
+  struct Entry { int64_t value; int64_t source; };
+  std::vector<Entry> entries;
+  entries.reserve(static_cast<size_t>(num_tets) * 78);
+  for (int64_t t = 0; t < num_tets; ++t)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) {
+        const int32_t va = tets[4 * t + a], vb = tets[4 * t + b];
+        if (va > vb) continue;  // the (b, a) block lands in the upper triangle
+        for (int c = 0; c < 3; ++c)
+          for (int r = 0; r < 3; ++r) {
+            if (va == vb && r > c) continue;
+            const int64_t local_row = 3 * a + r, local_col = 3 * b + c;
+            entries.push_back({value_index(va, r, vb, c), t * 144 + local_col * 12 + local_row});
+          }
+      }
+  pattern.source_ptr.assign(pattern.nnz() + 1, 0);
+  for (const Entry& e : entries) ++pattern.source_ptr[e.value + 1];
+  for (int64_t k = 0; k < pattern.nnz(); ++k) pattern.source_ptr[k + 1] += pattern.source_ptr[k];
+  pattern.sources.resize(entries.size());
+  std::vector<int64_t> fill(pattern.source_ptr.begin(), pattern.source_ptr.end() - 1);
+  for (const Entry& e : entries) pattern.sources[fill[e.value]++] = e.source;
+  return pattern;
+}
+
+void gather_hessian(const HessianPattern& pattern, const double* slab, double* values) {
+  parallel_for(pattern.nnz(), [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      double sum = 0.0;
+      for (int64_t s = pattern.source_ptr[k]; s < pattern.source_ptr[k + 1]; ++s)
+        sum += slab[pattern.sources[s]];
+      values[k] = sum;
+    }
+  }, 4096);
+}
+
+}  // namespace nexdyn

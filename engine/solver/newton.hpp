@@ -1,0 +1,53 @@
+// Projected Newton on the incremental potential with a backtracking (Armijo) line search.
+//
+// Per iteration: gradient and PSD-projected Hessian (parallel, deterministic), Dirichlet DOFs
+// eliminated (their rows and columns become identity, their gradient zero), CHOLMOD numeric
+// factorisation on the cached symbolic analysis, direction p = -H^-1 g. Converged when the
+// increment in velocity units, max|p| / dt, is below the tolerance. A failure is returned as a
+// StepStatus with a sentence saying why; the solver never accepts a step it could not finish.
+#pragma once
+
+#include "engine/incremental_potential.hpp"
+#include "engine/model.hpp"
+#include "engine/solver/cholmod_solver.hpp"
+#include "engine/solver/step_status.hpp"
+
+#include <string>
+#include <vector>
+
+namespace nexdyn {
+
+struct NewtonSettings {
+  double tolerance = 1e-5;  // [m/s] on max|p| / dt
+  int max_iterations = 100;
+  double dt = 0.01;         // [s] turns the increment into a velocity
+};
+
+struct NewtonResult {
+  StepStatus status = StepStatus::ok;
+  int iterations = 0;        // linear solves
+  double increment = 0.0;    // last max|p| / dt [m/s]
+  double energy = 0.0;       // E at the returned x
+  std::string message;       // why it failed; empty when ok
+};
+
+class NewtonSolver {
+ public:
+  NewtonSolver(const Model& model, IncrementalPotential& potential);
+
+  // Minimises the potential starting from x (Dirichlet DOFs already at their targets).
+  // On success x is the minimiser; on failure x is the last accepted iterate.
+  NewtonResult solve(std::vector<double>& x, const NewtonSettings& settings);
+
+ private:
+  void eliminate_dirichlet(double* grad, double* values) const;
+
+  const Model& model_;
+  IncrementalPotential& potential_;
+  CholmodSolver cholmod_;
+  std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
+  std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
+  std::vector<double> grad_, direction_, values_, trial_;
+};
+
+}  // namespace nexdyn

@@ -1,0 +1,22 @@
+// State: what the integrator advances, as flat buffers of the same shape as Model's positions.
+//
+// Positions are packed xyz doubles so that `x` is directly the degree-of-freedom vector that the
+// Newton solver and CHOLMOD see. Written only by the step (engine/simulation.cpp) and the
+// integrator update kernels (engine/integrator.cpp).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+struct State {
+  int64_t step = 0;    // number of completed steps
+  double time = 0.0;   // [s]
+  std::vector<double> x;        // (num_vertices x 3) positions x_n [m]
+  std::vector<double> v;        // (num_vertices x 3) velocities v_n [m/s]
+  std::vector<double> a;        // (num_vertices x 3) accelerations a_n [m/s^2]
+  std::vector<double> x_tilde;  // (num_vertices x 3) predictor of the step being solved [m]
+};
+
+}  // namespace nexdyn

@@ -1,0 +1,91 @@
+// The nexdyn program end to end: the contracts of DESIGN.md section 6 (exit codes, one-line
+// errors, the exact stats.csv header, frames and scene.pvd, nothing half-written) and
+// thread-count independence of stats.csv.
+#include "engine/output/frame_writer.hpp"
+#include "engine/run.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <filesystem>
+
+using namespace nexdyn;
+namespace fs = std::filesystem;
+
+namespace {
+
+// stats.csv without its last column (wall_seconds).
+std::vector<std::string> stats_without_wall_time(const fs::path& file) {
+  std::vector<std::string> rows = test::read_lines(file);
+  for (std::string& row : rows) row = row.substr(0, row.rfind(','));
+  return rows;
+}
+
+}  // namespace
+
+TEST_CASE("nexdyn check validates a scene and prints its size") {
+  const auto r = test::run_cli("check " + test::scene_path("cantilever.json").string());
+  CHECK(r.exit_code == 0);
+  CHECK(r.output.find("tets 3840") != std::string::npos);
+  CHECK(r.output.find("ok") != std::string::npos);
+}
+
+TEST_CASE("nexdyn run writes stats.csv with the exact header, frames and scene.pvd; threads do not change it") {
+  const fs::path out1 = test::temp_dir("cli_threads1"), out2 = test::temp_dir("cli_threads2");
+  const std::string scene = test::scene_path("cantilever.json").string();
+  const auto r1 = test::run_cli("run " + scene + " --steps 30 --threads 1 --quiet --out " + out1.string());
+  const auto r2 = test::run_cli("run " + scene + " --steps 30 --threads 2 --quiet --out " + out2.string());
+  REQUIRE(r1.exit_code == 0);
+  REQUIRE(r2.exit_code == 0);
+  const auto rows1 = test::read_lines(out1 / "stats.csv");
+  REQUIRE(rows1.size() == 31);
+  CHECK(rows1[0] == kStatsHeader);
+  CHECK(rows1[1].rfind("1,0.01,", 0) == 0);  // the first row is the state after step 1
+  CHECK(stats_without_wall_time(out1 / "stats.csv") == stats_without_wall_time(out2 / "stats.csv"));
+  CHECK_FALSE(fs::exists(out1 / "stats.partial.csv"));
+  // output.every = 5: frames 0, 5, ..., 30.
+  for (int f = 0; f <= 30; f += 5) CHECK(fs::exists(out1 / "frames" / frame_file_name(f, "vtu")));
+  CHECK_FALSE(fs::exists(out1 / "frames" / "frame_000001.vtu"));
+  const auto pvd = test::read_lines(out1 / "scene.pvd");
+  int datasets = 0;
+  for (const auto& line : pvd) datasets += line.find("<DataSet") != std::string::npos;
+  CHECK(datasets == 7);
+}
+
+TEST_CASE("bad input: one line on stderr, non-zero exit, nothing written") {
+  const fs::path dir = test::temp_dir("cli_bad");
+  const fs::path out = dir / "out";
+  const fs::path bad = test::write_text(dir / "bad.json", R"({
+    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.5, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ] })");
+  const auto r = test::run_cli("run " + bad.string() + " --out " + out.string());
+  CHECK(r.exit_code != 0);
+  CHECK(r.output.find("bad.json: materials.m.poisson") != std::string::npos);
+  CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+  CHECK_FALSE(fs::exists(out));
+
+  const auto missing = test::run_cli("run " + (dir / "nope.json").string());
+  CHECK(missing.exit_code != 0);
+  CHECK(missing.output.find("nope.json") != std::string::npos);
+
+  const auto unknown = test::run_cli("run " + test::scene_path("cantilever.json").string() +
+                                     " --integrator leapfrog --out " + out.string());
+  CHECK(unknown.exit_code != 0);
+  CHECK(unknown.output.find("leapfrog") != std::string::npos);
+  CHECK_FALSE(fs::exists(out / "stats.csv"));
+}
+
+TEST_CASE("a Newton failure is reported with its step and reason, and stats.csv is not presented as complete") {
+  const fs::path dir = test::temp_dir("cli_fail");
+  const fs::path scene = test::write_text(dir / "stiff.json", R"({
+    "time": { "dt": 0.01, "steps": 10 }, "solver": { "tolerance": 1e-12, "max_iterations": 1 },
+    "materials": { "m": { "model": "neohookean", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 0.1, 0.1], "cells": [10, 1, 1] }, "material": "m" } ],
+    "boundary": [ { "box_min": [-0.51, -1, -1], "box_max": [-0.49, 1, 1], "fix": true } ] })");
+  const auto r = test::run_cli("run " + scene.string() + " --quiet --out " + (dir / "out").string());
+  CHECK(r.exit_code == 2);
+  CHECK(r.output.find("step 1 ") != std::string::npos);
+  CHECK(r.output.find("max_iterations") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir / "out" / "stats.csv"));
+  CHECK(fs::exists(dir / "out" / "stats.partial.csv"));
+}

@@ -1,0 +1,69 @@
+// Helpers shared by the engine tests: scenes written to temporary folders, the CLI run as a
+// child process, stats.csv read back.
+#pragma once
+
+#include "engine/run.hpp"
+#include "engine/scene/scene.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace nexdyn::test {
+
+// A fresh empty folder under the system temp dir, unique per call.
+inline std::filesystem::path temp_dir(const std::string& tag) {
+  static std::mt19937_64 rng(std::random_device{}());
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("nexdyn_test_" + tag + "_" + std::to_string(rng() % 1000000000));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+inline std::filesystem::path write_text(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+  return path;
+}
+
+inline Scene scene_from_json(const std::string& json, const std::string& tag = "scene") {
+  const auto dir = temp_dir(tag);
+  return load_scene(write_text(dir / (tag + ".json"), json));
+}
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs the nexdyn binary with the given argument string.
+inline CommandResult run_cli(const std::string& args) {
+  const std::string cmd = std::string(NEXDYN_CLI_PATH) + " " + args + " 2>&1";
+  CommandResult result;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return result;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) result.output.append(buf, n);
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+inline std::vector<std::string> read_lines(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// The path of a shipped scene.
+inline std::filesystem::path scene_path(const std::string& name) {
+  return std::filesystem::path(NEXDYN_SOURCE_DIR) / "scenes" / name;
+}
+
+}  // namespace nexdyn::test
