@@ -66,6 +66,21 @@ void CholmodSolver::analyze(int64_t n, const int64_t* col_ptr, const int64_t* ro
                                          std::to_string(common_->status) + ")");
 }
 
+double CholmodSolver::factor_nonzeros() const { return common_->lnz; }
+double CholmodSolver::factor_flops() const { return common_->fl; }
+
+std::string CholmodSolver::ordering_name() const {
+  if (!factor_) return "none";
+  switch (factor_->ordering) {
+    case CHOLMOD_NATURAL: return "natural";
+    case CHOLMOD_AMD: return "AMD";
+    case CHOLMOD_METIS: return "METIS";
+    case CHOLMOD_NESDIS: return "NESDIS";
+    case CHOLMOD_COLAMD: return "COLAMD";
+    default: return "other";
+  }
+}
+
 bool CholmodSolver::factorize(const double* values) {
   cholmod_sparse a = wrap(n_, col_ptr_, row_idx_, values);
   const int ok = cholmod_l_factorize(&a, factor_, common_);

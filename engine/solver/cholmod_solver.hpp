@@ -35,6 +35,11 @@ class CholmodSolver {
   void solve(const double* b, double* x);
 
   const std::string& error() const { return error_; }
+  // Non-zeros of the Cholesky factor and flops of one factorisation, from the last analysis.
+  double factor_nonzeros() const;
+  double factor_flops() const;
+  // Name of the fill-reducing ordering chosen by the last analysis.
+  std::string ordering_name() const;
 
  private:
   cholmod_common_struct* common_ = nullptr;
