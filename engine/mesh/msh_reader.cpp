@@ -1,0 +1,616 @@
+// Gmsh ASCII .msh 2.2 / 4.1 reader (what it accepts and rejects: msh_reader.hpp).
+//
+// The file is read into memory in one go and parsed by a cursor that skips whitespace and counts
+// lines, so every error can say where it happened. Parsing keeps raw tags (nodes and tets may
+// come in any order, tags need not be contiguous), then one pass maps tags to compact ids.
+// Numbers are parsed with std::from_chars: locale-free, exact (round-trips what Gmsh wrote) and
+// allocation-free, so a 3 MB mesh loads in milliseconds.
+//
+// Formats (gmsh.info/doc/texinfo, "MSH file format"):
+//   2.2  $Nodes: n, then n lines "tag x y z".
+//        $Elements: n, then n lines "tag type ntags tag... node...".
+//   4.1  $Nodes: "numBlocks numNodes minTag maxTag", then per block
+//        "entityDim entityTag parametric numNodesInBlock", the block's tags, one per line, then
+//        its coordinates "x y z [parametric coordinates]", one node per line.
+//        $Elements: "numBlocks numElements minTag maxTag", then per block
+//        "entityDim entityTag elementType numElementsInBlock" and one line "tag node..." each.
+// Gmsh writes one node and one element per line; the reader relies on that only to skip the
+// elements it does not keep (whose node count depends on the type) and parametric coordinates.
+#include "engine/mesh/msh_reader.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <system_error>
+#include <vector>
+
+namespace nexdyn {
+namespace {
+
+constexpr int kLinearTetType = 4;
+
+// Growth of the raw arrays is bounded by the file size anyway (see check_count); the cap only
+// keeps an honest but huge count from reserving more than it needs before anything is read.
+constexpr int64_t kMaxReserve = int64_t{1} << 22;
+
+// Fewest bytes one entry can take in the file: a node is at least "t x y z\n" (8 bytes), a 2.2
+// element at least "t y n v\n" (8), a 4.1 element at least "t v\n" (4), a 4.1 block header 8.
+constexpr int64_t kMinNodeBytes = 8;
+constexpr int64_t kMinElement22Bytes = 8;
+constexpr int64_t kMinElement41Bytes = 4;
+constexpr int64_t kMinBlockBytes = 8;
+
+enum class MshVersion { kUnknown, k2, k41 };
+
+// Everything read from the file before tags are resolved.
+struct RawMesh {
+  std::vector<int64_t> node_tags;      // (num_nodes) in file order
+  std::vector<double> node_xyz;        // (num_nodes x 3)
+  std::vector<int64_t> tet_nodes;      // (num_tets x 4) node tags
+  std::vector<int64_t> tet_tags;       // (num_tets) element tags, for error messages
+  std::vector<int64_t> tet_lines;      // (num_tets) line of each tet, for error messages
+  int64_t skipped_elements = 0;        // elements of other types
+  int64_t skipped_quadratic_tets = 0;  // type 11: worth naming when no linear tet is found
+};
+
+bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+}
+bool is_inline_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
+  while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+// Shortens a token for quoting in a message (binary junk or a whole line would be unreadable).
+std::string quote(std::string_view token) {
+  std::string out;
+  for (char c : token.substr(0, 40)) out += (c >= 32 && c < 127) ? c : '?';
+  if (token.size() > 40) out += "...";
+  return "'" + out + "'";
+}
+
+std::string format_double(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", x);
+  return buffer;
+}
+
+class MshParser {
+ public:
+  MshParser(std::string_view text, std::string_view source_name)
+      : text_(text), name_(source_name) {}
+
+  TetMesh parse(MshReadStats* stats) {
+    while (true) {
+      skip_space();
+      if (pos_ == text_.size()) break;
+      const int64_t header_line = line_;
+      const std::string_view header = read_line();
+      if (header.empty() || header.front() != '$') continue;  // Gmsh ignores text between sections
+      const std::string_view name = header.substr(1);
+      if (name == "MeshFormat") {
+        parse_mesh_format(header_line);
+      } else if (name == "Nodes" || name == "Elements") {
+        if (version_ == MshVersion::kUnknown)
+          fail(header_line,
+               "$" + std::string(name) + " before $MeshFormat (MSH 1 files are not supported)");
+        section_ = name;
+        section_line_ = header_line;
+        item_kind_ = nullptr;
+        last_item_tag_ = -1;
+        if (name == "Nodes")
+          version_ == MshVersion::k41 ? parse_nodes_41() : parse_nodes_2();
+        else
+          version_ == MshVersion::k41 ? parse_elements_41() : parse_elements_2();
+        expect_section_end();
+      } else if (name == "NOD" || name == "ELM") {
+        fail(header_line, "MSH 1 format ($" + std::string(name) +
+                              ") is not supported; re-save as MSH 2.2 or 4.1");
+      } else if (name.substr(0, 3) == "End") {
+        fail(header_line, quote(header) + " without a matching opening section");
+      } else {
+        skip_section(name, header_line);
+      }
+    }
+    if (version_ == MshVersion::kUnknown) fail_file("not a Gmsh .msh file: no $MeshFormat section");
+    return build_mesh(stats);
+  }
+
+ private:
+  // ---- errors ---------------------------------------------------------------------------------
+  [[noreturn]] void fail_file(const std::string& what) const {
+    throw MeshError(std::string(name_) + ": " + what);
+  }
+  [[noreturn]] void fail(int64_t line, const std::string& what) const {
+    throw MeshError(std::string(name_) + ": line " + std::to_string(line) + ": " + what);
+  }
+  // Describes the node or element being read, so that truncation and syntax errors name it.
+  std::string item_description() const {
+    if (item_kind_ == nullptr || (item_tag_ < 0 && last_item_tag_ < 0)) return "";
+    return std::string(", ") + (item_tag_ >= 0 ? "in " : "after ") + item_kind_ + " " +
+           std::to_string(item_tag_ >= 0 ? item_tag_ : last_item_tag_);
+  }
+  [[noreturn]] void fail_eof() const {
+    fail(line_, "unexpected end of file inside $" + std::string(section_) + " (opened at line " +
+                    std::to_string(section_line_) + ")" + item_description() +
+                    "; the file is truncated");
+  }
+
+  // ---- cursor ---------------------------------------------------------------------------------
+  void skip_space() {
+    while (pos_ < text_.size() && is_space(text_[pos_])) {
+      if (text_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+  }
+  // Rest of the current line, trimmed; the cursor moves to the start of the next line.
+  std::string_view read_line() {
+    const std::size_t begin = pos_;
+    while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
+    const std::string_view line = text_.substr(begin, pos_ - begin);
+    if (pos_ < text_.size()) {
+      ++pos_;
+      ++line_;
+    }
+    return trim(line);
+  }
+  void skip_line() { read_line(); }
+  std::string_view next_token(const char* what) {
+    skip_space();
+    if (pos_ == text_.size()) fail_eof();
+    const std::size_t begin = pos_;
+    while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
+    const std::string_view token = text_.substr(begin, pos_ - begin);
+    if (token.front() == '$')
+      fail(line_, "$" + std::string(section_) + " ends early: expected " + what + ", found " +
+                      quote(token) + item_description() +
+                      " (the section holds fewer entries than it declares)");
+    return token;
+  }
+  int64_t read_int(const char* what) {
+    const std::string_view token = next_token(what);
+    int64_t value = 0;
+    const char* first = token.data();
+    if (*first == '+') ++first;
+    const auto [end, error] = std::from_chars(first, token.data() + token.size(), value);
+    if (error == std::errc::result_out_of_range)
+      fail(line_, std::string(what) + " " + quote(token) + " is out of range" + item_description());
+    if (error != std::errc() || end != token.data() + token.size())
+      fail(line_, "expected " + std::string(what) + ", found " + quote(token) + item_description());
+    return value;
+  }
+  int64_t read_non_negative(const char* what) {
+    const int64_t value = read_int(what);
+    if (value < 0)
+      fail(line_, std::string(what) + " must not be negative, found " + std::to_string(value) +
+                      item_description());
+    return value;
+  }
+  double read_double(const char* what) {
+    const std::string_view token = next_token(what);
+    double value = 0.0;
+    const char* first = token.data();
+    if (*first == '+') ++first;
+    const auto [end, error] = std::from_chars(first, token.data() + token.size(), value);
+    if (end != token.data() + token.size() ||
+        (error != std::errc() && error != std::errc::result_out_of_range))
+      fail(line_, "expected " + std::string(what) + ", found " + quote(token) + item_description());
+    // Out of range: from_chars leaves the value unspecified, strtod tells overflow (+-HUGE_VAL,
+    // caught as non-finite by the caller) from underflow (a harmless 0 or subnormal).
+    if (error == std::errc::result_out_of_range)
+      value = std::strtod(std::string(token).c_str(), nullptr);
+    return value;
+  }
+  // Entries must end their line: trailing numbers mean the file does not say what we think it
+  // says (a wrong element type, a 4.0 file read as 4.1), and going on would misread the rest.
+  void expect_line_end(const char* what) {
+    while (pos_ < text_.size() && is_inline_space(text_[pos_])) ++pos_;
+    if (pos_ < text_.size() && text_[pos_] != '\n') {
+      const std::size_t begin = pos_;
+      while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
+      fail(line_, "unexpected " + quote(text_.substr(begin, pos_ - begin)) + " after " + what +
+                      item_description());
+    }
+  }
+  // A count read from the file must fit in what is left of the file: this is what stops a
+  // corrupt header from requesting a giant allocation.
+  void check_count(int64_t count, int64_t min_bytes_each, const char* what) {
+    const int64_t remaining = static_cast<int64_t>(text_.size() - pos_);
+    if (count > remaining / min_bytes_each)
+      fail(line_, "$" + std::string(section_) + " declares " + std::to_string(count) + " " + what +
+                      " but only " + std::to_string(remaining) +
+                      " bytes remain in the file (corrupt or truncated count)");
+  }
+  void begin_item(const char* kind) {
+    item_kind_ = kind;
+    item_tag_ = -1;
+  }
+  void set_item_tag(int64_t tag) {
+    item_tag_ = tag;
+    last_item_tag_ = tag;
+  }
+  void end_item() { item_tag_ = -1; }
+
+  // ---- sections -------------------------------------------------------------------------------
+  void parse_mesh_format(int64_t header_line) {
+    section_ = "MeshFormat";
+    section_line_ = header_line;
+    item_kind_ = nullptr;
+    const std::string_view version = next_token("format version");
+    const int64_t file_type = read_int("file type (0 = ASCII, 1 = binary)");
+    read_int("data size");
+    if (file_type == 1)
+      fail(header_line + 1,
+           "binary .msh not supported; re-save the mesh as ASCII (e.g. gmsh -save -format msh41, "
+           "Mesh.Binary = 0)");
+    if (file_type != 0)
+      fail(header_line + 1, "file type must be 0 (ASCII), found " + std::to_string(file_type));
+    if (version == "4.1") {
+      version_ = MshVersion::k41;
+    } else if (version == "2" || version == "2.0" || version == "2.1" || version == "2.2") {
+      version_ = MshVersion::k2;
+    } else {
+      fail(header_line + 1, "MSH version " + quote(version) +
+                                " is not supported; re-save the mesh as MSH 2.2 or 4.1");
+    }
+    expect_line_end("the format line");
+    expect_section_end();
+  }
+
+  void expect_section_end() {
+    item_kind_ = nullptr;
+    skip_space();
+    if (pos_ == text_.size()) fail_eof();
+    const int64_t line = line_;
+    const std::string_view found = read_line();
+    if (found.size() != section_.size() + 4 || found.substr(0, 4) != "$End" ||
+        found.substr(4) != section_)
+      fail(line, "expected $End" + std::string(section_) + " to close $" + std::string(section_) +
+                     " (opened at line " + std::to_string(section_line_) + "), found " +
+                     quote(found) + " (the section holds more entries than it declares)");
+  }
+
+  void skip_section(std::string_view name, int64_t header_line) {
+    while (pos_ < text_.size()) {
+      const std::string_view line = read_line();
+      if (line.size() == name.size() + 4 && line.substr(0, 4) == "$End" && line.substr(4) == name)
+        return;
+    }
+    fail(line_, "unexpected end of file inside $" + std::string(name) + " (opened at line " +
+                    std::to_string(header_line) + "); the file is truncated");
+  }
+
+  void reserve_nodes(int64_t count) {
+    const std::size_t n = static_cast<std::size_t>(std::min(count, kMaxReserve));
+    raw_.node_tags.reserve(raw_.node_tags.size() + n);
+    raw_.node_xyz.reserve(raw_.node_xyz.size() + 3 * n);
+  }
+
+  void read_coordinates(int64_t tag) {
+    for (int d = 0; d < 3; ++d) {
+      const double x = read_double("a node coordinate");
+      if (!std::isfinite(x))
+        fail(line_, "node " + std::to_string(tag) + " has a non-finite coordinate (" +
+                        (std::isnan(x) ? std::string("nan") : std::string(x > 0 ? "inf" : "-inf")) +
+                        ")");
+      raw_.node_xyz.push_back(x);
+    }
+  }
+
+  void parse_nodes_2() {
+    const int64_t count = read_non_negative("node count");
+    expect_line_end("the node count");
+    check_count(count, kMinNodeBytes, "nodes");
+    reserve_nodes(count);
+    for (int64_t i = 0; i < count; ++i) {
+      begin_item("node");
+      const int64_t tag = read_non_negative("node tag");
+      set_item_tag(tag);
+      raw_.node_tags.push_back(tag);
+      read_coordinates(tag);
+      expect_line_end("the node's coordinates");
+      end_item();
+    }
+  }
+
+  void parse_nodes_41() {
+    const int64_t num_blocks = read_non_negative("node block count");
+    const int64_t count = read_non_negative("node count");
+    read_non_negative("min node tag");
+    read_non_negative("max node tag");
+    expect_line_end("the $Nodes header");
+    check_count(num_blocks, kMinBlockBytes, "node blocks");
+    check_count(count, kMinNodeBytes, "nodes");
+    reserve_nodes(count);
+    int64_t total = 0;
+    for (int64_t b = 0; b < num_blocks; ++b) {
+      item_kind_ = nullptr;
+      const int64_t header_line = line_;
+      const int64_t entity_dim = read_int("entity dimension");
+      read_int("entity tag");
+      const int64_t parametric = read_int("parametric flag");
+      const int64_t in_block = read_non_negative("block node count");
+      expect_line_end("the node block header");
+      if (entity_dim < 0 || entity_dim > 3)
+        fail(header_line, "node block " + std::to_string(b + 1) + " has entity dimension " +
+                              std::to_string(entity_dim) + " (must be 0..3)");
+      if (parametric != 0 && parametric != 1)
+        fail(header_line, "node block " + std::to_string(b + 1) + " has parametric flag " +
+                              std::to_string(parametric) + " (must be 0 or 1)");
+      check_count(in_block, kMinNodeBytes, "nodes in a block");
+      total += in_block;
+      if (total > count)
+        fail(header_line, "node blocks hold more nodes than the " + std::to_string(count) +
+                              " declared in the $Nodes header");
+      // Tags first, then coordinates in the same order.
+      const std::size_t first = raw_.node_tags.size();
+      for (int64_t i = 0; i < in_block; ++i) {
+        begin_item("node");
+        const int64_t tag = read_non_negative("node tag");
+        set_item_tag(tag);
+        raw_.node_tags.push_back(tag);
+      }
+      for (int64_t i = 0; i < in_block; ++i) {
+        begin_item("node");
+        const int64_t tag = raw_.node_tags[first + i];
+        set_item_tag(tag);
+        read_coordinates(tag);
+        // Parametric coordinates (u, v, w up to the entity dimension) follow x y z on the same
+        // line; the engine has no use for them.
+        if (parametric == 1)
+          skip_line();
+        else
+          expect_line_end("the node's coordinates");
+        end_item();
+      }
+    }
+    if (total != count)
+      fail(line_, "node blocks hold " + std::to_string(total) +
+                      " nodes but the $Nodes header declares " + std::to_string(count));
+  }
+
+  void add_tet(int64_t tag, int64_t line, const int64_t nodes[4]) {
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j)
+        if (nodes[i] == nodes[j])
+          fail(line, "element " + std::to_string(tag) + " (tet) uses node " +
+                         std::to_string(nodes[i]) + " twice");
+    raw_.tet_nodes.insert(raw_.tet_nodes.end(), nodes, nodes + 4);
+    raw_.tet_tags.push_back(tag);
+    raw_.tet_lines.push_back(line);
+  }
+
+  void skip_element(int64_t type) {
+    ++raw_.skipped_elements;
+    if (type == 11) ++raw_.skipped_quadratic_tets;
+    skip_line();
+  }
+
+  void parse_elements_2() {
+    const int64_t count = read_non_negative("element count");
+    expect_line_end("the element count");
+    check_count(count, kMinElement22Bytes, "elements");
+    for (int64_t i = 0; i < count; ++i) {
+      begin_item("element");
+      const int64_t tag = read_non_negative("element tag");
+      set_item_tag(tag);
+      const int64_t line = line_;
+      const int64_t type = read_int("element type");
+      if (type != kLinearTetType) {
+        skip_element(type);
+        end_item();
+        continue;
+      }
+      const int64_t num_tags = read_non_negative("number of element tags");
+      if (num_tags > 64)
+        fail(line,
+             "element " + std::to_string(tag) + " declares " + std::to_string(num_tags) + " tags");
+      for (int64_t k = 0; k < num_tags; ++k) read_int("element tag value");
+      int64_t nodes[4];
+      for (int64_t& node : nodes) node = read_non_negative("node tag");
+      expect_line_end("the tet's 4 node tags");
+      add_tet(tag, line, nodes);
+      end_item();
+    }
+  }
+
+  void parse_elements_41() {
+    const int64_t num_blocks = read_non_negative("element block count");
+    const int64_t count = read_non_negative("element count");
+    read_non_negative("min element tag");
+    read_non_negative("max element tag");
+    expect_line_end("the $Elements header");
+    check_count(num_blocks, kMinBlockBytes, "element blocks");
+    check_count(count, kMinElement41Bytes, "elements");
+    int64_t total = 0;
+    for (int64_t b = 0; b < num_blocks; ++b) {
+      item_kind_ = nullptr;
+      const int64_t header_line = line_;
+      read_int("entity dimension");
+      read_int("entity tag");
+      const int64_t type = read_int("element type");
+      const int64_t in_block = read_non_negative("block element count");
+      expect_line_end("the element block header");
+      check_count(in_block, kMinElement41Bytes, "elements in a block");
+      total += in_block;
+      if (total > count)
+        fail(header_line, "element blocks hold more elements than the " + std::to_string(count) +
+                              " declared in the $Elements header");
+      if (type == kLinearTetType) {
+        const std::size_t n = static_cast<std::size_t>(std::min(in_block, kMaxReserve));
+        raw_.tet_nodes.reserve(raw_.tet_nodes.size() + 4 * n);
+        raw_.tet_tags.reserve(raw_.tet_tags.size() + n);
+        raw_.tet_lines.reserve(raw_.tet_lines.size() + n);
+      }
+      for (int64_t i = 0; i < in_block; ++i) {
+        begin_item("element");
+        const int64_t tag = read_non_negative("element tag");
+        set_item_tag(tag);
+        const int64_t line = line_;
+        if (type != kLinearTetType) {
+          skip_element(type);
+          end_item();
+          continue;
+        }
+        int64_t nodes[4];
+        for (int64_t& node : nodes) node = read_non_negative("node tag");
+        expect_line_end("the tet's 4 node tags");
+        add_tet(tag, line, nodes);
+        end_item();
+      }
+    }
+    if (total != count)
+      fail(line_, "element blocks hold " + std::to_string(total) +
+                      " elements but the $Elements header declares " + std::to_string(count));
+  }
+
+  // ---- tags to ids ----------------------------------------------------------------------------
+  TetMesh build_mesh(MshReadStats* stats) {
+    const int64_t num_tets = static_cast<int64_t>(raw_.tet_tags.size());
+    if (num_tets == 0) {
+      std::string what = "no linear tetrahedra (element type 4) in the file";
+      if (raw_.skipped_quadratic_tets > 0)
+        what += "; it has " + std::to_string(raw_.skipped_quadratic_tets) +
+                " 10-node tets (type 11), which are not supported";
+      else if (raw_.skipped_elements > 0)
+        what += "; skipped " + std::to_string(raw_.skipped_elements) + " element(s) of other types";
+      fail_file(what);
+    }
+    if (num_tets > std::numeric_limits<int32_t>::max() / 4)
+      fail_file(std::to_string(num_tets) + " tets do not fit in 32-bit ids");
+
+    // Node order by tag. Files almost always list tags in increasing order; only sort otherwise.
+    const std::vector<int64_t>& tags = raw_.node_tags;
+    const int64_t num_nodes = static_cast<int64_t>(tags.size());
+    std::vector<int64_t> by_tag(static_cast<std::size_t>(num_nodes));
+    std::iota(by_tag.begin(), by_tag.end(), int64_t{0});
+    if (!std::is_sorted(tags.begin(), tags.end()))
+      std::sort(by_tag.begin(), by_tag.end(),
+                [&](int64_t a, int64_t b) { return tags[a] < tags[b]; });
+    for (int64_t k = 1; k < num_nodes; ++k)
+      if (tags[by_tag[k]] == tags[by_tag[k - 1]])
+        fail_file("node tag " + std::to_string(tags[by_tag[k]]) + " is defined twice in $Nodes");
+
+    // Tag -> node index: a direct table when tags are dense (the usual 1..N), else binary search
+    // in the sorted tags, so a file with tags near 2^60 needs no giant table.
+    const int64_t min_tag = num_nodes ? tags[by_tag.front()] : 0;
+    const int64_t max_tag = num_nodes ? tags[by_tag.back()] : -1;
+    const bool dense = num_nodes > 0 && max_tag - min_tag <= 4 * num_nodes + 1024;
+    std::vector<int64_t> table;
+    std::vector<int64_t> sorted_tags;
+    if (dense) {
+      table.assign(static_cast<std::size_t>(max_tag - min_tag + 1), -1);
+      for (int64_t i = 0; i < num_nodes; ++i) table[tags[i] - min_tag] = i;
+    } else {
+      sorted_tags.resize(static_cast<std::size_t>(num_nodes));
+      for (int64_t k = 0; k < num_nodes; ++k) sorted_tags[k] = tags[by_tag[k]];
+    }
+    auto node_index = [&](int64_t tag) -> int64_t {
+      if (dense) return (tag < min_tag || tag > max_tag) ? -1 : table[tag - min_tag];
+      const auto it = std::lower_bound(sorted_tags.begin(), sorted_tags.end(), tag);
+      return (it == sorted_tags.end() || *it != tag) ? -1 : by_tag[it - sorted_tags.begin()];
+    };
+
+    // Resolve tet node tags, mark used nodes.
+    std::vector<int64_t> tet_node_index(raw_.tet_nodes.size());
+    std::vector<int32_t> new_id(static_cast<std::size_t>(num_nodes), -1);
+    for (std::size_t k = 0; k < raw_.tet_nodes.size(); ++k) {
+      const int64_t index = node_index(raw_.tet_nodes[k]);
+      if (index < 0)
+        fail(raw_.tet_lines[k / 4], "element " + std::to_string(raw_.tet_tags[k / 4]) +
+                                        " references unknown node tag " +
+                                        std::to_string(raw_.tet_nodes[k]));
+      tet_node_index[k] = index;
+      new_id[index] = 0;  // used
+    }
+
+    // Compact renumbering in tag order, dropping unused nodes.
+    TetMesh mesh;
+    int64_t next = 0;
+    for (const int64_t index : by_tag)
+      if (new_id[index] == 0) {
+        if (next == std::numeric_limits<int32_t>::max()) fail_file("too many nodes for 32-bit ids");
+        new_id[index] = static_cast<int32_t>(next++);
+      }
+    mesh.positions.resize(3 * static_cast<std::size_t>(next));
+    for (int64_t i = 0; i < num_nodes; ++i)
+      if (new_id[i] >= 0)
+        std::copy_n(&raw_.node_xyz[3 * i], 3,
+                    &mesh.positions[3 * static_cast<std::size_t>(new_id[i])]);
+    mesh.tets.resize(tet_node_index.size());
+    for (std::size_t k = 0; k < tet_node_index.size(); ++k)
+      mesh.tets[k] = new_id[tet_node_index[k]];
+
+    const int32_t bad = find_degenerate_tet(mesh);
+    if (bad >= 0) {
+      const std::string detail =
+          "volume " + format_double(signed_tet_volume(mesh, bad)) +
+          ", |volume| / longest edge^3 = " + format_double(tet_relative_volume(mesh, bad)) +
+          " <= " + format_double(kDegenerateTetRelativeVolume);
+      fail(raw_.tet_lines[bad], "element " + std::to_string(raw_.tet_tags[bad]) +
+                                    " is a degenerate tet (" + detail + ")");
+    }
+    const int32_t flipped = orient_tets_positively(mesh);
+    if (stats != nullptr) {
+      stats->flipped_tets = flipped;
+      stats->skipped_elements = raw_.skipped_elements;
+      stats->unused_nodes = num_nodes - next;
+    }
+    return mesh;
+  }
+
+  std::string_view text_;
+  std::string_view name_;
+  std::size_t pos_ = 0;
+  int64_t line_ = 1;  // line of the character at pos_
+  MshVersion version_ = MshVersion::kUnknown;
+  std::string_view section_ = "";  // name of the section being parsed, for messages
+  int64_t section_line_ = 0;
+  const char* item_kind_ = nullptr;  // "node" / "element" while reading one, for messages
+  int64_t item_tag_ = -1;
+  int64_t last_item_tag_ = -1;
+  RawMesh raw_;
+};
+
+}  // namespace
+
+TetMesh parse_msh(std::string_view text, std::string_view source_name, MshReadStats* stats) {
+  return MshParser(text, source_name).parse(stats);
+}
+
+TetMesh read_msh(const std::filesystem::path& path, MshReadStats* stats) {
+  const std::string name = path.string();
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error))
+    throw MeshError(name + ": cannot open mesh file (" +
+                    (std::filesystem::exists(path, error) ? "not a regular file" : "no such file") +
+                    ")");
+  std::FILE* file = std::fopen(name.c_str(), "rb");
+  if (file == nullptr) throw MeshError(name + ": cannot open mesh file for reading");
+  // Read straight into the string (sized from the file system when it knows the size), then
+  // append whatever remains, so a file that grows or lies about its size is still read whole.
+  std::string text;
+  const auto size = std::filesystem::file_size(path, error);
+  if (!error) text.resize(static_cast<std::size_t>(size));
+  text.resize(std::fread(text.data(), 1, text.size(), file));
+  char buffer[1 << 16];
+  std::size_t got = 0;
+  while ((got = std::fread(buffer, 1, sizeof buffer, file)) > 0) text.append(buffer, got);
+  const bool read_failed = std::ferror(file) != 0;
+  std::fclose(file);
+  if (read_failed) throw MeshError(name + ": read error");
+  return parse_msh(text, name, stats);
+}
+
+}  // namespace nexdyn
