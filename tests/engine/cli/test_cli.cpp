@@ -30,7 +30,7 @@ TEST_CASE("nexdyn check validates a scene and prints its size") {
   CHECK(r.output.find("ok") != std::string::npos);
 }
 
-TEST_CASE("nexdyn run writes stats.csv with the exact header, frames and scene.pvd; threads do not change it") {
+TEST_CASE("nexdyn run writes stats.csv with the exact header and frames and scene.pvd and threads do not change it") {
   const fs::path out1 = test::temp_dir("cli_threads1"), out2 = test::temp_dir("cli_threads2");
   const std::string scene = test::scene_path("cantilever.json").string();
   const auto r1 = test::run_cli("run " + scene + " --steps 30 --threads 1 --quiet --out " + out1.string());
@@ -52,7 +52,7 @@ TEST_CASE("nexdyn run writes stats.csv with the exact header, frames and scene.p
   CHECK(datasets == 7);
 }
 
-TEST_CASE("bad input: one line on stderr, non-zero exit, nothing written") {
+TEST_CASE("bad input: one line on stderr and a non-zero exit and nothing written") {
   const fs::path dir = test::temp_dir("cli_bad");
   const fs::path out = dir / "out";
   const fs::path bad = test::write_text(dir / "bad.json", R"({
@@ -75,7 +75,7 @@ TEST_CASE("bad input: one line on stderr, non-zero exit, nothing written") {
   CHECK_FALSE(fs::exists(out / "stats.csv"));
 }
 
-TEST_CASE("a Newton failure is reported with its step and reason, and stats.csv is not presented as complete") {
+TEST_CASE("a Newton failure is reported with its step and reason and stats.csv is not presented as complete") {
   const fs::path dir = test::temp_dir("cli_fail");
   const fs::path scene = test::write_text(dir / "stiff.json", R"({
     "time": { "dt": 0.01, "steps": 10 }, "solver": { "tolerance": 1e-12, "max_iterations": 1 },

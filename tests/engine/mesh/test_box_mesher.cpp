@@ -15,7 +15,7 @@ using namespace nexdyn;
 
 TEST_SUITE_BEGIN("mesh");
 
-TEST_CASE("make_box_mesh: counts, volume, orientation and a closed conforming surface") {
+TEST_CASE("make_box_mesh: counts and volume and orientation and a closed conforming surface") {
   struct BoxCase {
     Eigen::Vector3d size;
     std::array<int, 3> cells;

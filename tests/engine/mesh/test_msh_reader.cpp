@@ -156,7 +156,7 @@ TEST_CASE("read_msh: every shared IPC mesh matches mesh_info.jsonl") {
   }
 }
 
-TEST_CASE("read_msh: hand-written 2.2 file with mixed elements, unused nodes, sparse tags") {
+TEST_CASE("read_msh: hand-written 2.2 file with mixed elements and unused nodes and sparse tags") {
   // mixed_v22.msh: $PhysicalNames and $NodeData sections, a point, a line and two triangles
   // among the elements, nodes 7 and 41 unused, tags 10 20 35 40 50 out of order with gaps, and
   // tet 5 negatively oriented.
@@ -204,7 +204,7 @@ constexpr const char* kMixedV41 =
 
 }  // namespace
 
-TEST_CASE("parse_msh: 4.1 with entities, parametric and split node blocks equals the 2.2 file") {
+TEST_CASE("parse_msh: 4.1 with entities and parametric and split node blocks equals the 2.2 file") {
   const TetMesh from_v22 = read_msh(kTestMeshes / "mixed_v22.msh");
   const TetMesh from_v41 = parse_msh(kMixedV41, "mixed_v41");
   CHECK(from_v41.positions == from_v22.positions);

@@ -24,7 +24,7 @@ TetMesh unit_tet(double scale = 1.0, double offset = 0.0) {
 
 TEST_SUITE_BEGIN("mesh");
 
-TEST_CASE("signed_tet_volume: sign follows vertex order, scales with size cubed") {
+TEST_CASE("signed_tet_volume: sign follows vertex order and scales with size cubed") {
   const Eigen::Vector3d x0(0, 0, 0), x1(1, 0, 0), x2(0, 1, 0), x3(0, 0, 1);
   CHECK(signed_tet_volume(x0, x1, x2, x3) == doctest::Approx(1.0 / 6.0));
   // Odd permutations flip the sign, even ones keep it.

@@ -31,7 +31,7 @@ std::string error_of(const std::string& json) {
 
 }  // namespace
 
-TEST_CASE("scene errors name the file, the key and the value") {
+TEST_CASE("scene errors name the file and the key and the value") {
   struct Case { std::string json; std::vector<std::string> must_contain; };
   const std::vector<Case> cases = {
       {scene_with(R"("gravty": [0, 0, 0])"), {"bad.json", "gravty", "unknown key"}},
@@ -105,7 +105,7 @@ TEST_CASE("a good scene builds the buffers it describes") {
   CHECK(m.material_batches.size() == 1);
 }
 
-TEST_CASE("rotate_deg rotates about x, then y, then z; scale comes first") {
+TEST_CASE("rotate_deg rotates about x then y then z and scale comes first") {
   Scene scene = test::scene_from_json(R"({
     "materials": { "m": { "model": "linear", "youngs": 1e5, "poisson": 0.3, "density": 1 } },
     "bodies": [ { "box": { "size": [2, 2, 2], "cells": [1, 1, 1] }, "material": "m",
