@@ -197,7 +197,7 @@ void BM_gradient_range_baseline(benchmark::State& state) {
         const Eigen::Map<const Eigen::Matrix3d> Dm_inv(&mesh.Dm_inv[9 * t]);
         Vector12d g;
         energy[t] = tet_energy_gradient<M>(corners(mesh, t), Dm_inv, mesh.volume[t], kLame, g);
-        Eigen::Map<Vector12d>(&gradient[12 * t]) = g;
+        Eigen::Map<Vector12d>(gradient.data() + 12 * t) = g;
       }
     });
     benchmark::ClobberMemory();
@@ -218,8 +218,8 @@ void BM_hessian_range_baseline(benchmark::State& state) {
         Vector12d g;
         Matrix12d H;
         tet_energy_gradient_hessian<M>(corners(mesh, t), Dm_inv, mesh.volume[t], kLame, g, H);
-        Eigen::Map<Vector12d>(&gradient[12 * t]) = g;
-        Eigen::Map<Matrix12d>(&hessian[144 * t]) = H;
+        Eigen::Map<Vector12d>(gradient.data() + 12 * t) = g;
+        Eigen::Map<Matrix12d>(hessian.data() + 144 * t) = H;
       }
     });
     benchmark::ClobberMemory();

@@ -5,9 +5,10 @@
 // turns the long dependency chains of a tet (SVD, log, divisions) into four independent ones and
 // does 4x the arithmetic per instruction. Around the kernel, the data are transposed between
 // memory (one tet after the other: AoS) and lanes (one quantity of four tets: SoA):
-//   in:  corner positions are gathered lane by lane (random vertex ids); Dm^-1 rows of four tets
-//        are 4x4-transposed; volumes are one load.
-//   out: per-tet slabs are written by 4x4 transposes of groups of four consecutive outputs.
+//   in:  each corner is one masked 4-wide load per tet (random vertex ids) and a 4x4 transpose;
+//        Dm^-1 of four consecutive tets is two 4x4 transposes and a gather; volumes one load.
+//   out: per-tet slabs are written by 4x4 transposes of groups of four consecutive outputs; the
+//        Hessian slab with streaming stores (see hessian_range).
 // The last, partial pack repeats its last tet in the spare lanes and stores only the real ones, so
 // a tet's result never depends on where a chunk starts or ends (lanes are independent).
 #include "kernels/elasticity/elasticity_range.hpp"
@@ -103,7 +104,8 @@ inline void stream_pack(const Double4 values[N], int count, double* out, int64_t
   store_pack<N>(values, kPack, &staging[0][0], 0);
   double* base = out + int64_t(N) * first;
   for (int l = 0; l < count; ++l)
-    for (int i = 0; i < N; i += 4) simd::stream4(base + int64_t(N) * l + i, simd::load4(&staging[l][i]));
+    for (int i = 0; i < N; i += 4)
+      simd::stream4(base + int64_t(N) * l + i, simd::load4(&staging[l][i]));
 }
 
 }  // namespace

@@ -177,7 +177,8 @@ inline SingularValueDerivatives<T> singular_value_derivatives(const Vec3<T>& sig
     for (int i = 0; i < 3; ++i) {
       d.dpsi[i] = sigma[i] * (2.0 * mu * E[i] + lambda * tr);
       for (int j = 0; j < 3; ++j) d.d2psi(i, j) = lambda * sigma[i] * sigma[j];
-      d.d2psi(i, i) = d.d2psi(i, i) + 2.0 * mu * E[i] + lambda * tr + 2.0 * mu * sigma[i] * sigma[i];
+      d.d2psi(i, i) =
+          d.d2psi(i, i) + 2.0 * mu * E[i] + lambda * tr + 2.0 * mu * sigma[i] * sigma[i];
     }
     for (int p = 0; p < 3; ++p) {
       const T si = sigma[kSigmaPairs[p][0]], sj = sigma[kSigmaPairs[p][1]];
@@ -193,7 +194,8 @@ inline SingularValueDerivatives<T> singular_value_derivatives(const Vec3<T>& sig
         (1.0 + simd::max(simd::max(simd::abs(sigma[0]), simd::abs(sigma[1])), simd::abs(sigma[2])));
     for (int i = 0; i < 3; ++i) {
       d.dpsi[i] = 2.0 * mu * (sigma[i] - 1.0) + lambda * tr;
-      for (int j = 0; j < 3; ++j) d.d2psi(i, j) = simd::splat<T>(i == j ? 2.0 * mu + lambda : lambda);
+      for (int j = 0; j < 3; ++j)
+        d.d2psi(i, j) = simd::splat<T>(i == j ? 2.0 * mu + lambda : lambda);
     }
     for (int p = 0; p < 3; ++p) {
       const T si = sigma[kSigmaPairs[p][0]], sj = sigma[kSigmaPairs[p][1]];

@@ -10,8 +10,8 @@
 //   1. V and sigma^2 from the eigen-decomposition of F^T F (kernels/projection/sym_eigen3.hpp).
 //   2. U from a Gram-Schmidt QR of B = F V: u0 = b0/|b0|, u1 = the part of b1 orthogonal to u0,
 //      u2 = u0 x u1. The diagonal of R = U^T F V gives sigma, including the sign of sigma_2 (u2 is
-//      forced right-handed, so sigma_2 = u2 . b2 carries the sign of det F). Computing sigma from F V
-//      rather than as sqrt(eigenvalues) keeps small singular values accurate.
+//      forced right-handed, so sigma_2 = u2 . b2 carries the sign of det F). Computing sigma from
+//      F V rather than as sqrt(eigenvalues) keeps small singular values accurate.
 //   3. The off-diagonal of R is exactly what U diag(sigma) V^T misses of F. Errors of V inside a
 //      cluster of nearly equal singular values barely show there (they are multiplied by the
 //      cluster's width), which is why squaring F is acceptable. Where the off-diagonal exceeds

@@ -1,12 +1,12 @@
 // Projection of small symmetric matrices onto the positive semi-definite cone.
 //
-// Newton's method on the incremental potential (IPC, Li et al. 2020, sec. 5; seed 004 "IPC") needs a
-// positive semi-definite Hessian so that the Newton direction is a descent direction. Per-element
-// Hessians (contact stencils 6x6..12x12, elastic 9x9 in F-space) are made PSD before assembly by
-// clamping negative eigenvalues: A+ = Q max(Lambda, 0) Q^T, the nearest PSD matrix in the
-// Frobenius norm. Elastic tets use the cheaper analytic eigensystem (kernels/elasticity/); this
+// Newton's method on the incremental potential (IPC, Li et al. 2020, sec. 5; seed 004 "IPC")
+// needs a positive semi-definite Hessian so that the Newton direction is a descent direction.
+// Per-element Hessians (contact stencils 6x6..12x12, elastic 9x9 in F-space) are made PSD before
+// assembly by clamping negative eigenvalues: A+ = Q max(Lambda, 0) Q^T, the nearest PSD matrix in
+// the Frobenius norm. Elastic tets use the cheaper analytic eigensystem (kernels/elasticity/); this
 // brute-force version is the reference for it and the tool for stencils without a known
-// eigensystem.
+// eigensystem. psd_factor3 (3x3 blocks, lane-wise) returns a factor L with L L^T = A+ instead.
 //
 // Fixed-size Eigen types only: SelfAdjointEigenSolver on them does not allocate.
 #pragma once

@@ -164,11 +164,13 @@ inline void sym_eigen3(const Mat3<T>& A, Vec3<T>& values, Mat3<T>& vectors) {
   vectors = select(multiple_of_identity, identity3<T>(), vectors);
   const T nan = simd::splat<T>(std::numeric_limits<double>::quiet_NaN());
   values = select(finite, values, Vec3<T>{{nan, nan, nan}});
-  vectors = select(finite, vectors, Mat3<T>{{{{nan, nan, nan}}, {{nan, nan, nan}}, {{nan, nan, nan}}}});
+  vectors =
+      select(finite, vectors, Mat3<T>{{{{nan, nan, nan}}, {{nan, nan, nan}}, {{nan, nan, nan}}}});
 }
 
 // Eigen interface (one matrix).
-inline void sym_eigen3(const Eigen::Matrix3d& A, Eigen::Vector3d& values, Eigen::Matrix3d& vectors) {
+inline void sym_eigen3(const Eigen::Matrix3d& A, Eigen::Vector3d& values,
+                       Eigen::Matrix3d& vectors) {
   Vec3<double> l;
   Mat3<double> v;
   sym_eigen3(to_mat3(A), l, v);

@@ -1,8 +1,9 @@
 // Tests of kernels/elasticity: every derivative against central finite differences (energy ->
 // PK1 -> dP/dF in F-space; tet energy -> gradient -> exact Hessian in x-space) for the four
-// materials on random, strongly stretched, flattened (nearly inverted), inverted and sliver tets and
-// at rest; the analytic PSD projection against a brute-force eigen-projection; invariances; the
-// neo-Hookean inversion contract; the signed SVD; and the range drivers against the element layer.
+// materials on random, strongly stretched, flattened (nearly inverted), inverted and sliver tets
+// and at rest; the analytic PSD projection against a brute-force eigen-projection; invariances;
+// the neo-Hookean inversion contract; the signed SVD; the range drivers (four-lane SIMD) against
+// the element layer.
 #include "kernels/elasticity/elasticity.hpp"
 #include "kernels/elasticity/elasticity_range.hpp"
 #include "kernels/elasticity/svd3.hpp"

@@ -223,7 +223,8 @@ TEST_CASE("projection: four-lane sym_eigen3 and psd_factor3 equal four scalar ca
                             symmetric_with_spectrum(rng, {u(rng), u(rng), u(rng)})};
     Mat3<Double4> packed;
     for (int c = 0; c < 3; ++c)
-      for (int r = 0; r < 3; ++r) packed(r, c) = Double4{A[0](r, c), A[1](r, c), A[2](r, c), A[3](r, c)};
+      for (int r = 0; r < 3; ++r)
+        packed(r, c) = Double4{A[0](r, c), A[1](r, c), A[2](r, c), A[3](r, c)};
     Vec3<Double4> values;
     Mat3<Double4> vectors;
     sym_eigen3(packed, values, vectors);
