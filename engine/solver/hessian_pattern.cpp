@@ -4,12 +4,17 @@
 #include "engine/parallel.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace nexdyn {
 
 HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector<int32_t>& tets) {
   const int64_t num_tets = static_cast<int64_t>(tets.size()) / 4;
+  if (num_tets > HessianPattern::kMaxTets)
+    throw std::length_error("more than " + std::to_string(HessianPattern::kMaxTets) +
+                            " tets in one Hessian: not supported");
   HessianPattern pattern;
   pattern.num_dofs = 3 * int64_t{num_vertices};
 
@@ -60,7 +65,7 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
   };
 
   // Gather table: count, prefix-sum, fill (tets in increasing order, so sources stay sorted).
-  struct Entry { int64_t value; int64_t source; };
+  struct Entry { int64_t value; uint32_t source; };
   std::vector<Entry> entries;
   entries.reserve(static_cast<size_t>(num_tets) * 78);
   for (int64_t t = 0; t < num_tets; ++t)
@@ -72,7 +77,8 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
           for (int r = 0; r < 3; ++r) {
             if (va == vb && r > c) continue;
             const int64_t local_row = 3 * a + r, local_col = 3 * b + c;
-            entries.push_back({value_index(va, r, vb, c), t * 144 + local_col * 12 + local_row});
+            entries.push_back({value_index(va, r, vb, c),
+                               static_cast<uint32_t>(t * 144 + local_col * 12 + local_row)});
           }
       }
   pattern.source_ptr.assign(pattern.nnz() + 1, 0);
