@@ -1,9 +1,9 @@
 // The doctest main of nexdyn_tests: every tests/**/test_*.cpp registers its cases with it.
 //
-// CTest runs each case as `nexdyn_tests --test-case=<name>`. doctest treats ',' in a filter as a
-// separator and exits 0 when a filter matches nothing, so a renamed or badly named case would
-// "pass" without running. This main counts the cases that started and fails a filtered run that
-// ran none. (Test case names therefore must not contain ',' either.)
+// CTest runs each case as `nexdyn_tests --test-case=<name>`, and doctest exits 0 when a filter
+// matches nothing. CMake's test discovery cuts names at ';' (its list separator), so a case named
+// "a; b" became the filter "a" and "passed" without running. This main counts the cases that
+// started and fails a filtered run that ran none, so such a name now fails loudly.
 #define DOCTEST_CONFIG_IMPLEMENT
 #include <doctest/doctest.h>
 
