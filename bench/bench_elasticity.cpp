@@ -11,6 +11,7 @@
 // data + 104 B out (+ 104 B read-for-ownership); Hessian adds 1152 B out, written with streaming
 // stores (no read-for-ownership). The *_baseline cases run the same kernels one tet at a time
 // through the element layer (T = double) instead of four per instruction.
+#include "engine/mesh/box_mesher.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 #include "kernels/elasticity/elasticity_range.hpp"
 
@@ -44,57 +45,35 @@ struct BoxMesh {
   TetRange range() const { return {x.data(), tets.data(), Dm_inv.data(), volume.data()}; }
 };
 
-// Unit cells cut into 6 tets around the diagonal (Freudenthal / Kuhn): conforming without
-// alternating cells. Tets are stored cell by cell, so consecutive tets share vertices.
-BoxMesh make_box_mesh() {
+// The engine's box mesher (6 tets per cell around the cell diagonal, conforming), with the rest
+// shape data the kernels read and every vertex moved randomly by up to 8% of a cell.
+BoxMesh make_bench_mesh() {
+  const TetMesh box = make_box_mesh(Eigen::Vector3d(1.0, 1.0, 1.0), {kCells, kCells, kCells});
   BoxMesh mesh;
-  const int n = kCells + 1;
+  mesh.tets = box.tets;
+  mesh.Dm_inv.reserve(9 * size_t(box.num_tets()));
+  mesh.volume.reserve(box.num_tets());
+  for (int32_t t = 0; t < box.num_tets(); ++t) {
+    Matrix34d X;
+    for (int v = 0; v < 4; ++v)
+      X.col(v) = Eigen::Map<const Eigen::Vector3d>(&box.positions[3 * box.tets[4 * t + v]]);
+    Eigen::Matrix3d Dm_inv;
+    double volume = 0.0;
+    tet_rest_shape(X, Dm_inv, volume);  // the mesher orients every tet positively
+    mesh.Dm_inv.insert(mesh.Dm_inv.end(), Dm_inv.data(), Dm_inv.data() + 9);
+    mesh.volume.push_back(volume);
+  }
   const double h = 1.0 / kCells;
-  std::vector<double> rest;
-  rest.reserve(3 * size_t(n) * n * n);
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) rest.insert(rest.end(), {i * h, j * h, k * h});
-  auto id = [&](int i, int j, int k) { return int32_t(i + n * (j + n * k)); };
-  const int paths[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  const size_t num_tets = 6 * size_t(kCells) * kCells * kCells;
-  mesh.tets.reserve(4 * num_tets);
-  mesh.Dm_inv.reserve(9 * num_tets);
-  mesh.volume.reserve(num_tets);
-  for (int k = 0; k < kCells; ++k)
-    for (int j = 0; j < kCells; ++j)
-      for (int i = 0; i < kCells; ++i)
-        for (const auto& path : paths) {
-          int c[3] = {i, j, k};
-          int32_t ids[4];
-          ids[0] = id(c[0], c[1], c[2]);
-          for (int s = 0; s < 3; ++s) {
-            ++c[path[s]];
-            ids[s + 1] = id(c[0], c[1], c[2]);
-          }
-          Matrix34d X;
-          for (int v = 0; v < 4; ++v) X.col(v) = Eigen::Map<Eigen::Vector3d>(&rest[3 * ids[v]]);
-          Eigen::Matrix3d Dm_inv;
-          double volume = 0.0;
-          if (!tet_rest_shape(X, Dm_inv, volume)) {  // odd permutations are negatively oriented
-            std::swap(ids[1], ids[2]);
-            X.col(1).swap(X.col(2));
-            tet_rest_shape(X, Dm_inv, volume);
-          }
-          mesh.tets.insert(mesh.tets.end(), ids, ids + 4);
-          mesh.Dm_inv.insert(mesh.Dm_inv.end(), Dm_inv.data(), Dm_inv.data() + 9);
-          mesh.volume.push_back(volume);
-        }
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> u(-kPerturbation * h, kPerturbation * h);
-  mesh.x = rest;
+  mesh.x = box.positions;
   for (double& v : mesh.x) v += u(rng);
   return mesh;
 }
 
 const BoxMesh& box_mesh() {
   static const BoxMesh mesh = [] {
-    BoxMesh m = make_box_mesh();
+    BoxMesh m = make_bench_mesh();
     // Guard the premise of the benchmark: no inverted tet (neo-Hookean would be +inf).
     std::vector<double> energy(m.num_tets()), gradient(12 * m.num_tets());
     const LameParameters lame = lame_from_young_poisson(1e5, 0.4);
