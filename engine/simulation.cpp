@@ -74,13 +74,13 @@ StepOutcome Simulation::step() {
   if (integrator.is_explicit()) {
     x_next_ = state_.x_tilde;
     prescribe(t_next, x_next_, nullptr, nullptr);
-    std::vector<double> a_new = state_.a;
-    if (!explicit_acceleration(x_next_, a_new)) {
+    a_next_ = state_.a;  // prescribed vertices keep theirs until prescribe() below
+    if (!explicit_acceleration(x_next_, a_next_)) {
       outcome = {StepStatus::non_finite, "non-finite forces after the explicit update (the step "
                                          "is above the stability limit or a tet inverted)"};
       return outcome;
     }
-    update_explicit(integrator, dt, a_new, state_.v, state_.a);
+    update_explicit(integrator, dt, a_next_, state_.v, state_.a);
     state_.x.swap(x_next_);
   } else {
     if (!newton_) newton_ = std::make_unique<NewtonSolver>(model_, potential_);

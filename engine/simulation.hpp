@@ -67,7 +67,7 @@ class Simulation {
   ElasticAssembly elastic_;
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
-  std::vector<double> x_next_, force_;
+  std::vector<double> x_next_, a_next_, force_;  // (3n) step workspaces, allocated once
 };
 
 }  // namespace nexdyn

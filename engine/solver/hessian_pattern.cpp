@@ -50,10 +50,17 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
       for (int64_t p = vertex_col_begin[j]; p < vertex_col_begin[j + 1]; ++p) {
         const int32_t i = pairs[p].second;
         const int rows = (i == j) ? d + 1 : 3;
+        pattern.segment_value.push_back(k);
+        pattern.segment_length.push_back(static_cast<uint8_t>(rows));
         for (int r = 0; r < rows; ++r) pattern.row_idx[k++] = 3 * int64_t{i} + r;
       }
       pattern.diagonal[3 * j + d] = k - 1;
     }
+  // Segments were created in value order, so the segment of a first value is a binary search.
+  auto segment_of = [&](int64_t first_value) {
+    return std::lower_bound(pattern.segment_value.begin(), pattern.segment_value.end(), first_value) -
+           pattern.segment_value.begin();
+  };
 
   // Value index of the entry (row 3I + r, column 3J + c) with I <= J: neighbours are sorted, so a
   // binary search in vertex column J finds I, and rows of I are contiguous in every column of J.
@@ -65,40 +72,49 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
   };
 
   // Gather table: count, prefix-sum, fill (tets in increasing order, so sources stay sorted).
-  struct Entry { int64_t value; uint32_t source; };
+  struct Entry { int64_t segment; uint32_t source; };
   std::vector<Entry> entries;
-  entries.reserve(static_cast<size_t>(num_tets) * 78);
+  entries.reserve(static_cast<size_t>(num_tets) * 26);
   for (int64_t t = 0; t < num_tets; ++t)
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b) {
         const int32_t va = tets[4 * t + a], vb = tets[4 * t + b];
         if (va > vb) continue;  // the (b, a) block lands in the upper triangle
-        for (int c = 0; c < 3; ++c)
-          for (int r = 0; r < 3; ++r) {
-            if (va == vb && r > c) continue;
-            const int64_t local_row = 3 * a + r, local_col = 3 * b + c;
-            entries.push_back({value_index(va, r, vb, c),
-                               static_cast<uint32_t>(t * 144 + local_col * 12 + local_row)});
-          }
+        for (int c = 0; c < 3; ++c) {
+          const int64_t local_col = 3 * b + c;
+          entries.push_back({segment_of(value_index(va, 0, vb, c)),
+                             static_cast<uint32_t>(t * 144 + local_col * 12 + 3 * a)});
+        }
       }
-  pattern.source_ptr.assign(pattern.nnz() + 1, 0);
-  for (const Entry& e : entries) ++pattern.source_ptr[e.value + 1];
-  for (int64_t k = 0; k < pattern.nnz(); ++k) pattern.source_ptr[k + 1] += pattern.source_ptr[k];
-  pattern.sources.resize(entries.size());
-  std::vector<int64_t> fill(pattern.source_ptr.begin(), pattern.source_ptr.end() - 1);
-  for (const Entry& e : entries) pattern.sources[fill[e.value]++] = e.source;
+  const int64_t num_segments = pattern.num_segments();
+  pattern.segment_source_ptr.assign(num_segments + 1, 0);
+  for (const Entry& e : entries) ++pattern.segment_source_ptr[e.segment + 1];
+  for (int64_t g = 0; g < num_segments; ++g)
+    pattern.segment_source_ptr[g + 1] += pattern.segment_source_ptr[g];
+  pattern.segment_sources.resize(entries.size());
+  std::vector<int64_t> fill(pattern.segment_source_ptr.begin(), pattern.segment_source_ptr.end() - 1);
+  for (const Entry& e : entries) pattern.segment_sources[fill[e.segment]++] = e.source;
   return pattern;
 }
 
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values) {
-  parallel_for(pattern.nnz(), [&](int64_t begin, int64_t end) {
-    for (int64_t k = begin; k < end; ++k) {
-      double sum = 0.0;
-      for (int64_t s = pattern.source_ptr[k]; s < pattern.source_ptr[k + 1]; ++s)
-        sum += slab[pattern.sources[s]];
-      values[k] = sum;
+  parallel_for(pattern.num_segments(), [&](int64_t begin, int64_t end) {
+    for (int64_t g = begin; g < end; ++g) {
+      // Rows past the segment's length read the (unused) lower triangle of a diagonal block:
+      // still inside the tet's slab, and simpler than three loop variants.
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+      for (int64_t s = pattern.segment_source_ptr[g]; s < pattern.segment_source_ptr[g + 1]; ++s) {
+        const double* block = slab + pattern.segment_sources[s];
+        s0 += block[0];
+        s1 += block[1];
+        s2 += block[2];
+      }
+      double* out = values + pattern.segment_value[g];
+      out[0] = s0;
+      if (pattern.segment_length[g] > 1) out[1] = s1;
+      if (pattern.segment_length[g] > 2) out[2] = s2;
     }
-  }, 4096);
+  }, 2048);
 }
 
 }  // namespace nexdyn

@@ -20,12 +20,18 @@ struct HessianPattern {
   std::vector<int64_t> col_ptr;  // (num_dofs + 1) CSC column starts
   std::vector<int64_t> row_idx;  // (nnz) row of each value, sorted within a column, row <= col
   std::vector<int64_t> diagonal; // (num_dofs) value index of each diagonal entry
-  // Gather table, CSR over values: value k receives slab[sources[source_ptr[k] .. source_ptr[k+1])].
+  // Gather table over segments. A segment is a run of 1-3 consecutive values of one column that
+  // come from one 3x3 vertex block (rows 3I..3I+2, or 3J..3J+d on the diagonal), so every tet
+  // that touches it contributes 1-3 consecutive entries of its slab: one index serves them all.
   // A slab index is tet * 144 + local_col * 12 + local_row (column-major 12x12 per tet); 32 bits
-  // halve the gather's index traffic and cover meshes up to kMaxTets.
-  std::vector<int64_t> source_ptr;   // (nnz + 1)
-  std::vector<uint32_t> sources;     // (num_tets x 78), ordered by tet within each value
+  // cover meshes up to kMaxTets.
+  std::vector<int64_t> segment_value;       // (num_segments) index of the segment's first value
+  std::vector<uint8_t> segment_length;      // (num_segments) 1, 2 or 3 values
+  std::vector<int64_t> segment_source_ptr;  // (num_segments + 1) CSR into segment_sources
+  std::vector<uint32_t> segment_sources;    // (num_tets x 26) slab index of the first row,
+                                            // ordered by tet within each segment
 
+  int64_t num_segments() const { return static_cast<int64_t>(segment_value.size()); }
   int64_t nnz() const { return static_cast<int64_t>(row_idx.size()); }
 };
 
@@ -33,7 +39,8 @@ struct HessianPattern {
 // std::length_error beyond HessianPattern::kMaxTets tets.
 HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector<int32_t>& tets);
 
-// values[k] = sum of slab entries listed for k (parallel over values, deterministic).
+// values = sum of the slab entries of every segment (parallel over segments; each value is summed
+// in tet order whatever the thread count).
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values);
 
 }  // namespace nexdyn
