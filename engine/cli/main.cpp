@@ -1,7 +1,9 @@
 // nexdyn: the command-line program (DESIGN.md section 6).
 //   nexdyn run SCENE.json [--out DIR] [--steps N] [--threads K] [--integrator NAME] [--quiet]
 //   nexdyn check SCENE.json
+//   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
+#include "engine/ccd_queries.hpp"
 #include "engine/run.hpp"
 #include "engine/scene/scene.hpp"
 
@@ -67,6 +69,10 @@ int main(int argc, char** argv) {
   CLI::App* check = app.add_subcommand("check", "Validate a scene and print its size");
   check->add_option("scene", check_path, "Scene JSON file")->required();
 
+  std::string ccd_path;
+  CLI::App* ccd = app.add_subcommand("ccd", "Run the narrow-phase CCD over a query file and print one line");
+  ccd->add_option("queries", ccd_path, "CCD query file (data/ccd/README.txt)")->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -78,6 +84,15 @@ int main(int argc, char** argv) {
     if (threads > 0)
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                            static_cast<size_t>(threads));
+    if (*ccd) {
+      const CcdQueryStats s = run_ccd_queries(ccd_path);
+      std::printf("queries=%lld positives=%lld false_negatives=%lld false_positives=%lld seconds=%.6f "
+                  "queries_per_second=%.1f\n",
+                  static_cast<long long>(s.queries), static_cast<long long>(s.positives),
+                  static_cast<long long>(s.false_negatives), static_cast<long long>(s.false_positives),
+                  s.seconds, s.seconds > 0.0 ? double(s.queries) / s.seconds : 0.0);
+      return 0;
+    }
     if (*check) {
       Scene scene = load_scene(check_path);
       Simulation validate(scene);  // builds the assembly and checks the initial forces
