@@ -33,6 +33,16 @@ struct BodyRange {
   int32_t triangle_begin = 0, triangle_count = 0;
   int32_t edge_begin = 0, edge_count = 0;
   int32_t scene_entry = 0;  // index of the "bodies" entry of the scene file it came from
+                            // (of the "obstacles" entry when obstacle is true)
+  bool obstacle = false;    // a static obstacle mesh: no tets, every vertex fixed, mass 0
+};
+
+// An analytic obstacle plane {x : (x - point) . normal = 0}; bodies stay on the side the normal
+// points to.
+struct ObstaclePlane {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   // [m]
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitY(); // unit length
+  int32_t scene_entry = 0;                           // index of its "obstacles" entry
 };
 
 // Consecutive tets sharing one material: the unit over which kernels dispatch on the model.
@@ -66,7 +76,9 @@ struct Model {
   std::vector<double> rest_volume;   // (num_tets) [m^3]
   std::vector<int32_t> tet_material; // (num_tets) index into materials
 
-  // ---- surface (for output now, for contact later) -----------------------------------------
+  // ---- surface: the collision mesh and the OBJ output ---------------------------------------
+  // Static obstacle meshes are bodies too (BodyRange::obstacle): their vertices sit in the vertex
+  // arrays with mass 0 and a fixed Dirichlet motion, their triangles and edges in these arrays.
   std::vector<int32_t> surface_triangles;  // (num_triangles x 3) outward-wound vertex ids
   std::vector<int32_t> surface_edges;      // (num_edges x 2) vertex ids, a < b
   std::vector<int32_t> surface_vertices;   // (num_surface_vertices) sorted vertex ids
@@ -75,7 +87,9 @@ struct Model {
   std::vector<BodyRange> bodies;
   std::vector<Material> materials;
   std::vector<MaterialBatch> material_batches;     // covers [0, num_tets) in order
-  std::vector<DirichletMotion> dirichlet_motions;  // one per "boundary" entry
+  std::vector<DirichletMotion> dirichlet_motions;  // one per "boundary" entry, then one shared
+                                                   // fixed motion for obstacle meshes
+  std::vector<ObstaclePlane> obstacle_planes;
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);  // [m/s^2]
 
   int64_t num_dofs() const { return 3 * int64_t{num_vertices}; }

@@ -38,8 +38,13 @@ void print_summary(const Scene& scene) {
   std::printf("  bodies %zu, vertices %d, tets %d, surface triangles %zu, DOFs %lld\n", m.bodies.size(),
               m.num_vertices, m.num_tets, m.surface_triangles.size() / 3,
               static_cast<long long>(m.num_dofs()));
-  std::printf("  materials %zu, total mass %.6g kg, boundary conditions %zu\n", m.materials.size(),
-              total_mass, m.dirichlet_motions.size());
+  size_t obstacle_meshes = 0;
+  for (const BodyRange& b : m.bodies) obstacle_meshes += b.obstacle;
+  // Obstacle meshes share one extra fixed motion after the "boundary" entries; not counted here.
+  const size_t boundary_entries = m.dirichlet_motions.size() - (obstacle_meshes > 0 ? 1 : 0);
+  std::printf("  materials %zu, total mass %.6g kg, boundary conditions %zu, obstacle planes %zu, "
+              "obstacle meshes %zu\n", m.materials.size(), total_mass, boundary_entries,
+              m.obstacle_planes.size(), obstacle_meshes);
   std::printf("  integrator %s (alpha %.6g, beta %.6g, gamma %.6g), dt %.6g s, steps %lld\n",
               scene.time.integrator.name.c_str(), scene.time.integrator.alpha,
               scene.time.integrator.beta, scene.time.integrator.gamma, scene.time.dt,

@@ -98,7 +98,10 @@ std::string obj_document(const Model& model, const std::vector<double>& x) {
     const int n = std::snprintf(buf, sizeof(buf), "v %.9g %.9g %.9g\n", x[3 * i], x[3 * i + 1], x[3 * i + 2]);
     out.append(buf, static_cast<size_t>(n));
   }
+  // Obstacle meshes are scenery, not results (DESIGN.md section 6): their triangles are left
+  // out, while their vertices stay in the "v" list so that numbering remains global.
   for (size_t t = 0; t + 2 < model.surface_triangles.size(); t += 3) {
+    if (model.bodies[model.vertex_body[model.surface_triangles[t]]].obstacle) continue;
     const int n = std::snprintf(buf, sizeof(buf), "f %d %d %d\n", model.surface_triangles[t] + 1,
                                 model.surface_triangles[t + 1] + 1, model.surface_triangles[t + 2] + 1);
     out.append(buf, static_cast<size_t>(n));

@@ -2,7 +2,10 @@
 //
 // The reader walks the document with a key path ("bodies[1].box.cells") so that every error
 // names the file, the key and the value. Bodies are appended to the shared buffers as ranges;
-// a mesh file used by several bodies (or an "array") is read once.
+// a mesh file used by several bodies (or an "array") is read once. Obstacle meshes (.obj
+// triangles or the boundary of a .msh) are appended after all bodies as bodies without tets:
+// mass 0, every vertex on one shared fixed Dirichlet motion (model.hpp); obstacle planes go to
+// Model::obstacle_planes.
 #include "engine/scene/scene.hpp"
 
 #include "engine/mesh/box_mesher.hpp"
@@ -13,12 +16,16 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cctype>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <optional>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace nexdyn {
 
@@ -140,13 +147,16 @@ void read_solver(const json& j, const Where& w, SolverSettings& solver) {
     solver.max_iterations = static_cast<int>(integer(j["max_iterations"], w["max_iterations"], 1));
 }
 
+// A "contact" object switches contact on ("contact": {} is enough); "enabled": false keeps the
+// settings in the file but turns contact off.
 void read_contact(const json& j, const Where& w, ContactSettings& contact) {
   check_keys(j, w, {"enabled", "dhat", "friction", "epsv"});
-  if (j.contains("enabled")) contact.enabled = boolean(j["enabled"], w["enabled"]);
+  contact.enabled = j.contains("enabled") ? boolean(j["enabled"], w["enabled"]) : true;
   if (j.contains("dhat")) contact.dhat = positive(j["dhat"], w["dhat"]);
   if (j.contains("friction")) {
     contact.friction = number(j["friction"], w["friction"]);
     if (contact.friction < 0.0) w["friction"].fail("expected a number >= 0", j["friction"]);
+    if (contact.friction > 0.0) w["friction"].fail("friction is not available yet (issue 4)", j["friction"]);
   }
   if (j.contains("epsv")) contact.epsv = positive(j["epsv"], w["epsv"]);
 }
@@ -212,6 +222,33 @@ Eigen::Matrix3d rotation_xyz_degrees(const Eigen::Vector3d& deg) {
           Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX())).toRotationMatrix();
 }
 
+// The placement of a mesh: scale, then rotate (degrees about x, then y, then z), then translate,
+// all about the mesh's own origin. Bodies and obstacle meshes share it so that the two kinds of
+// entry cannot drift apart in meaning.
+struct Transform {
+  Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();  // rotate * scale
+  Eigen::Vector3d translate = Eigen::Vector3d::Zero();   // [m]
+};
+
+Transform read_transform(const json& j, const Where& w) {
+  Eigen::Matrix3d scale = Eigen::Matrix3d::Identity();
+  if (j.contains("scale")) {
+    if (j["scale"].is_array()) {
+      const Eigen::Vector3d s = vec3(j["scale"], w["scale"]);
+      if (!(s.array() > 0.0).all()) w["scale"].fail("expected positive scale factors", j["scale"]);
+      scale = s.asDiagonal();
+    } else {
+      scale *= positive(j["scale"], w["scale"]);
+    }
+  }
+  Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
+  if (j.contains("rotate_deg")) rotate = rotation_xyz_degrees(vec3(j["rotate_deg"], w["rotate_deg"]));
+  Transform t;
+  t.linear = rotate * scale;
+  if (j.contains("translate")) t.translate = vec3(j["translate"], w["translate"]);
+  return t;
+}
+
 BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
                    const std::map<std::string, int32_t>& material_ids, MeshCache& cache) {
   check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array"});
@@ -264,20 +301,9 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
   if (found == material_ids.end()) w["material"].fail("no material named \"" + material + "\" in \"materials\"");
   body.material = found->second;
 
-  Eigen::Matrix3d scale = Eigen::Matrix3d::Identity();
-  if (j.contains("scale")) {
-    if (j["scale"].is_array()) {
-      const Eigen::Vector3d s = vec3(j["scale"], w["scale"]);
-      if (!(s.array() > 0.0).all()) w["scale"].fail("expected positive scale factors", j["scale"]);
-      scale = s.asDiagonal();
-    } else {
-      scale *= positive(j["scale"], w["scale"]);
-    }
-  }
-  Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
-  if (j.contains("rotate_deg")) rotate = rotation_xyz_degrees(vec3(j["rotate_deg"], w["rotate_deg"]));
-  body.linear = rotate * scale;
-  if (j.contains("translate")) body.translate = vec3(j["translate"], w["translate"]);
+  const Transform transform = read_transform(j, w);
+  body.linear = transform.linear;
+  body.translate = transform.translate;
   if (j.contains("velocity")) body.velocity = vec3(j["velocity"], w["velocity"]);
   if (j.contains("array")) {
     const json& a = j["array"];
@@ -389,7 +415,11 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
   const int32_t id = static_cast<int32_t>(model.dirichlet_motions.size());
   int64_t selected = 0;
   for (int32_t v = 0; v < model.num_vertices; ++v) {
-    if (only_entry && model.bodies[model.vertex_body[v]].scene_entry != *only_entry) continue;
+    const BodyRange& body = model.bodies[model.vertex_body[v]];
+    // Obstacle vertices already follow their own fixed motion, and an obstacle's scene_entry
+    // counts "obstacles" entries, not "bodies" entries, so "body" must never match it.
+    if (body.obstacle) continue;
+    if (only_entry && body.scene_entry != *only_entry) continue;
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&model.rest_positions[3 * v]);
     if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) {
       if (model.dirichlet[v] >= 0 && model.dirichlet[v] != id)
@@ -401,6 +431,259 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
   }
   if (selected == 0) w.fail("the box selects no vertex");
   model.dirichlet_motions.push_back(motion);
+}
+
+// ---- obstacles ---------------------------------------------------------------------------------
+
+// A static obstacle mesh in its own frame: a triangle surface with no volume. Only vertices used
+// by a triangle are kept (a .msh obstacle loses its interior nodes, an .obj its stray "v" lines),
+// so that every obstacle vertex is a surface vertex.
+struct ObstacleMesh {
+  std::vector<double> positions;   // (num_vertices x 3) [m], in the file's frame
+  std::vector<int32_t> triangles;  // (num_triangles x 3) local vertex ids, winding of the file
+  std::vector<int32_t> edges;      // (num_edges x 2) unique edges of the triangles, a < b, sorted
+};
+
+// A triangle is degenerate when its area <= kDegenerateTriangleRelativeArea * (longest edge)^2:
+// zero area up to round-off, for which no normal and no point-triangle distance is defined.
+// Scale-free for the same reason as kDegenerateTetRelativeVolume in tet_mesh.hpp.
+constexpr double kDegenerateTriangleRelativeArea = 1e-12;
+
+bool is_degenerate_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const double area = 0.5 * (b - a).cross(c - a).norm();
+  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  return area <= kDegenerateTriangleRelativeArea * longest * longest;
+}
+
+// Parses one OBJ face corner, "i", "i/t", "i//n" or "i/t/n", into a 0-based vertex id.
+// Negative indices count back from the last vertex defined so far (-1 = the latest); positive
+// ones must refer to a vertex already defined, as the OBJ format says. nullopt when malformed
+// or out of range; the caller names the line.
+std::optional<int32_t> obj_vertex_index(std::string_view corner, int64_t vertices_so_far) {
+  auto parse = [](std::string_view text, int64_t& value) {
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+    return error == std::errc() && end == text.data() + text.size();
+  };
+  // Split at '/': at most three parts; the texture and normal parts are checked, then ignored.
+  std::string_view parts[3];
+  int num_parts = 0;
+  for (size_t start = 0;;) {
+    if (num_parts == 3) return std::nullopt;
+    const size_t slash = corner.find('/', start);
+    parts[num_parts++] = corner.substr(start, slash == std::string_view::npos ? slash : slash - start);
+    if (slash == std::string_view::npos) break;
+    start = slash + 1;
+  }
+  int64_t ignored = 0;
+  for (int p = 1; p < num_parts; ++p)
+    if (!parts[p].empty() && !parse(parts[p], ignored)) return std::nullopt;
+  int64_t index = 0;
+  if (!parse(parts[0], index) || index == 0) return std::nullopt;
+  const int64_t id = index > 0 ? index - 1 : vertices_so_far + index;
+  if (id < 0 || id >= vertices_so_far) return std::nullopt;
+  return static_cast<int32_t>(id);
+}
+
+// A deliberately small OBJ reader: "v x y z" and "f a b c ..." lines; polygons are triangulated
+// as a fan around their first corner. Every other statement (vt, vn, o, g, s, usemtl, mtllib,
+// l, comments) is ignored, since a static collision surface needs nothing else. What it does
+// read it reads strictly: malformed numbers, faces of fewer than 3 corners, bad or out-of-range
+// indices and zero-area triangles throw SceneError naming the file and the line.
+ObstacleMesh read_obj(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(path.string() + ": cannot open the file");
+  ObstacleMesh mesh;
+  int64_t line_number = 0;
+  auto fail = [&](const std::string& what) {
+    throw SceneError(path.string() + ": line " + std::to_string(line_number) + ": " + what);
+  };
+  std::string line;
+  std::vector<std::string_view> tokens;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();  // files written on Windows
+    tokens.clear();
+    for (size_t i = 0; i < line.size();) {
+      while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+      const size_t start = i;
+      while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+      if (i > start) tokens.emplace_back(line.data() + start, i - start);
+    }
+    if (tokens.empty()) continue;
+    if (tokens[0] == "v") {
+      // x y z, optionally followed by w or by r g b vertex colours, which are ignored.
+      if (tokens.size() < 4) fail("expected \"v x y z\", got \"" + line + "\"");
+      for (size_t t = 1; t < tokens.size(); ++t) {
+        double value = 0.0;
+        const auto [end, error] = std::from_chars(tokens[t].data(), tokens[t].data() + tokens[t].size(), value);
+        if (error != std::errc() || end != tokens[t].data() + tokens[t].size() || !std::isfinite(value))
+          fail("expected a finite number, got \"" + std::string(tokens[t]) + "\"");
+        if (t <= 3) mesh.positions.push_back(value);
+      }
+      if (mesh.positions.size() / 3 > (size_t{1} << 30)) fail("more than 2^30 vertices");
+    } else if (tokens[0] == "f") {
+      if (tokens.size() < 4) fail("a face needs at least 3 vertices, got \"" + line + "\"");
+      const int64_t defined = static_cast<int64_t>(mesh.positions.size() / 3);
+      std::vector<int32_t> corners;
+      for (size_t t = 1; t < tokens.size(); ++t) {
+        const auto id = obj_vertex_index(tokens[t], defined);
+        if (!id) fail("bad vertex reference \"" + std::string(tokens[t]) + "\" (" +
+                      std::to_string(defined) + " vertices defined so far)");
+        corners.push_back(*id);
+      }
+      for (size_t k = 1; k + 1 < corners.size(); ++k) {
+        const int32_t tri[3] = {corners[0], corners[k], corners[k + 1]};
+        auto p = [&](int32_t id) { return Eigen::Vector3d::Map(&mesh.positions[3 * size_t(id)]); };
+        if (is_degenerate_triangle(p(tri[0]), p(tri[1]), p(tri[2])))
+          fail("degenerate (zero-area) triangle " + std::to_string(tri[0] + 1) + " " +
+               std::to_string(tri[1] + 1) + " " + std::to_string(tri[2] + 1));
+        mesh.triangles.insert(mesh.triangles.end(), tri, tri + 3);
+      }
+    }
+  }
+  if (in.bad()) throw SceneError(path.string() + ": read error");
+  if (mesh.triangles.empty()) throw SceneError(path.string() + ": no faces (\"f\" lines)");
+  return mesh;
+}
+
+// The boundary surface of a tet mesh as an obstacle: read_msh, then extract_surface.
+ObstacleMesh read_msh_surface(const fs::path& path) {
+  const TetMesh tets = read_msh(path);
+  const SurfaceMesh surface = extract_surface(tets);
+  ObstacleMesh mesh;
+  mesh.positions = tets.positions;
+  mesh.triangles = surface.triangles;
+  for (int32_t t = 0; t < surface.num_triangles(); ++t) {
+    auto p = [&](int c) { return Eigen::Vector3d::Map(&mesh.positions[3 * size_t(surface.triangles[3 * t + c])]); };
+    if (is_degenerate_triangle(p(0), p(1), p(2)))
+      throw SceneError(path.string() + ": boundary triangle " + std::to_string(t) + " is degenerate (zero area)");
+  }
+  return mesh;
+}
+
+// Drops the vertices no triangle uses (keeping the others in file order) and lists the edges.
+void compact_and_find_edges(ObstacleMesh& mesh) {
+  const size_t n = mesh.positions.size() / 3;
+  std::vector<int32_t> new_id(n, -1);
+  for (int32_t v : mesh.triangles) new_id[v] = 0;
+  std::vector<double> kept;
+  int32_t next = 0;
+  for (size_t v = 0; v < n; ++v) {
+    if (new_id[v] < 0) continue;
+    new_id[v] = next++;
+    kept.insert(kept.end(), &mesh.positions[3 * v], &mesh.positions[3 * v] + 3);
+  }
+  mesh.positions = std::move(kept);
+  for (int32_t& v : mesh.triangles) v = new_id[v];
+
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  edges.reserve(mesh.triangles.size());
+  for (size_t t = 0; t < mesh.triangles.size(); t += 3)
+    for (int c = 0; c < 3; ++c) {
+      const int32_t a = mesh.triangles[t + c], b = mesh.triangles[t + (c + 1) % 3];
+      edges.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  mesh.edges.clear();
+  for (const auto& [a, b] : edges) mesh.edges.insert(mesh.edges.end(), {a, b});
+}
+
+struct ObstacleCache {
+  std::map<std::string, ObstacleMesh> entries;  // by normalised path; std::map: stable addresses
+};
+
+const ObstacleMesh& read_obstacle_mesh(const json& j, const Where& w, const fs::path& scene_dir,
+                                       ObstacleCache& cache) {
+  const std::string rel = string(j["mesh"], w["mesh"]);
+  const fs::path path = scene_dir / rel;
+  const std::string key = path.lexically_normal().string();
+  if (const auto found = cache.entries.find(key); found != cache.entries.end()) return found->second;
+  std::string extension = path.extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".obj" && extension != ".msh")
+    w["mesh"].fail("expected an .obj or .msh file", j["mesh"]);
+  if (!fs::exists(path)) w["mesh"].fail("mesh file not found: " + path.string());
+  ObstacleMesh mesh;
+  try {
+    mesh = extension == ".obj" ? read_obj(path) : read_msh_surface(path);
+  } catch (const std::exception& e) {  // SceneError from read_obj, MeshError from read_msh
+    w["mesh"].fail(e.what());
+  }
+  compact_and_find_edges(mesh);
+  return cache.entries.emplace(key, std::move(mesh)).first->second;
+}
+
+// Appends a static obstacle mesh as a body: no tets, mass 0, every vertex on the shared fixed
+// motion `fixed_motion`, zero initial velocity. Its triangles join the collision surface.
+void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32_t scene_entry,
+                     int32_t fixed_motion, Model& model, State& state) {
+  BodyRange range;
+  range.vertex_begin = model.num_vertices;
+  range.vertex_count = static_cast<int32_t>(mesh.positions.size() / 3);
+  range.tet_begin = model.num_tets;
+  range.tet_count = 0;
+  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
+  range.triangle_count = static_cast<int32_t>(mesh.triangles.size() / 3);
+  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
+  range.edge_count = static_cast<int32_t>(mesh.edges.size() / 2);
+  range.scene_entry = scene_entry;
+  range.obstacle = true;
+  const int32_t body_id = static_cast<int32_t>(model.bodies.size());
+  const int32_t base = range.vertex_begin;
+
+  for (int32_t v = 0; v < range.vertex_count; ++v) {
+    const Eigen::Vector3d p = transform.linear * Eigen::Vector3d::Map(&mesh.positions[3 * size_t(v)]) +
+                              transform.translate;
+    for (int d = 0; d < 3; ++d) {
+      model.rest_positions.push_back(p[d]);
+      state.v.push_back(0.0);
+    }
+    model.mass.push_back(0.0);
+    model.vertex_body.push_back(body_id);
+    model.dirichlet.push_back(fixed_motion);
+  }
+  for (int32_t i : mesh.triangles) model.surface_triangles.push_back(base + i);
+  for (int32_t i : mesh.edges) model.surface_edges.push_back(base + i);
+  // Every vertex is used by a triangle (compact_and_find_edges), and base exceeds every earlier
+  // id, so surface_vertices stays sorted.
+  for (int32_t v = 0; v < range.vertex_count; ++v) model.surface_vertices.push_back(base + v);
+  model.num_vertices += range.vertex_count;
+  model.bodies.push_back(range);
+}
+
+// One entry of "obstacles": a plane or a static mesh. `fixed_motion` is the id of the shared
+// fixed Dirichlet motion, created on the first mesh (-1 until then).
+void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs::path& scene_dir,
+                   ObstacleCache& cache, int32_t& fixed_motion, Model& model, State& state) {
+  if (!j.is_object()) w.fail("expected an object", j);
+  if (j.contains("plane") == j.contains("mesh")) w.fail("give exactly one of \"plane\" and \"mesh\"");
+  if (j.contains("plane")) {
+    check_keys(j, w, {"plane"});
+    const json& plane = j["plane"];
+    const Where wp = w["plane"];
+    check_keys(plane, wp, {"point", "normal"});
+    if (!plane.contains("point") || !plane.contains("normal")) wp.fail("needs \"point\" and \"normal\"");
+    ObstaclePlane p;
+    p.point = vec3(plane["point"], wp["point"]);
+    const Eigen::Vector3d normal = vec3(plane["normal"], wp["normal"]);
+    const double length = normal.norm();
+    if (!(length > 0.0) || !std::isfinite(length)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
+    p.normal = normal / length;
+    p.scene_entry = scene_entry;
+    model.obstacle_planes.push_back(p);
+    return;
+  }
+  check_keys(j, w, {"mesh", "translate", "rotate_deg", "scale"});
+  const ObstacleMesh& mesh = read_obstacle_mesh(j, w, scene_dir, cache);
+  const Transform transform = read_transform(j, w);
+  if (int64_t{model.num_vertices} + static_cast<int64_t>(mesh.positions.size() / 3) > (int64_t{1} << 30))
+    w.fail("the scene exceeds 2^30 vertices");
+  if (fixed_motion < 0) {
+    fixed_motion = static_cast<int32_t>(model.dirichlet_motions.size());
+    model.dirichlet_motions.push_back(DirichletMotion{});  // velocity 0, angular velocity 0
+  }
+  append_obstacle(mesh, transform, scene_entry, fixed_motion, model, state);
 }
 
 }  // namespace
@@ -427,11 +710,17 @@ Scene load_scene(const fs::path& file) {
   if (root.contains("solver")) read_solver(root["solver"], w["solver"], scene.solver);
   if (root.contains("contact")) read_contact(root["contact"], w["contact"], scene.contact);
   if (root.contains("output")) read_output(root["output"], w["output"], scene.output);
-  if (scene.contact.enabled)
-    w["contact"]["enabled"].fail("contact is not available in this version of the engine yet");
-  for (const char* later : {"obstacles", "joints"})
-    if (root.contains(later) && !(root[later].is_array() && root[later].empty()))
-      w[later].fail("not available in this version of the engine yet");
+  // IPC's barrier lives inside the implicit solve: an explicit step (beta = 0) has no
+  // minimisation to add it to, so it could not keep bodies apart.
+  if (scene.contact.enabled && scene.time.integrator.is_explicit())
+    w["time"]["integrator"].fail("contact needs an implicit integrator (beta > 0); \"" +
+                                 scene.time.integrator.name + "\" is explicit (beta = 0)");
+  const bool has_obstacles = root.contains("obstacles") && !(root["obstacles"].is_array() && root["obstacles"].empty());
+  // Obstacles act on bodies only through contact; without it they would silently do nothing.
+  if (has_obstacles && !scene.contact.enabled)
+    w["obstacles"].fail("obstacles need contact; add \"contact\": {}");
+  if (root.contains("joints") && !(root["joints"].is_array() && root["joints"].empty()))
+    w["joints"].fail("not available in this version of the engine yet");
 
   // Materials.
   if (!root.contains("materials")) w.fail("missing key \"materials\"");
@@ -467,6 +756,18 @@ Scene load_scene(const fs::path& file) {
     if (!boundary.is_array()) w["boundary"].fail("expected an array", boundary);
     for (size_t i = 0; i < boundary.size(); ++i)
       read_boundary(boundary[i], w["boundary"][i], scene.model, static_cast<int64_t>(bodies.size()));
+  }
+
+  // Obstacles, after every body and every boundary entry: "bodies" entries keep their body
+  // indices, and the shared fixed motion of obstacle meshes comes after the "boundary" motions.
+  if (root.contains("obstacles")) {
+    const json& obstacles = root["obstacles"];
+    if (!obstacles.is_array()) w["obstacles"].fail("expected an array", obstacles);
+    ObstacleCache obstacle_cache;
+    int32_t fixed_motion = -1;
+    for (size_t i = 0; i < obstacles.size(); ++i)
+      read_obstacle(obstacles[i], w["obstacles"][i], static_cast<int32_t>(i), scene_dir, obstacle_cache,
+                    fixed_motion, scene.model, scene.initial);
   }
 
   scene.initial.x = scene.model.rest_positions;

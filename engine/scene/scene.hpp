@@ -34,9 +34,10 @@ struct SolverSettings {
 };
 
 struct ContactSettings {
-  bool enabled = false;
-  double dhat = 0.0;      // [m]; 0 = default (1e-3 of the bounding-box diagonal)
-  double friction = 0.0;  // Coulomb coefficient
+  bool enabled = false;   // true when the scene has a "contact" object, unless "enabled": false
+  double dhat = 0.0;      // [m]; 0 = default, resolved by the contact code: 1e-3 of the
+                          // bounding-box diagonal of the tet bodies (obstacles excluded)
+  double friction = 0.0;  // Coulomb coefficient; the loader refuses > 0 for now (issue 4)
   double epsv = 0.0;      // [m/s]; 0 = default
 };
 
@@ -54,7 +55,8 @@ struct Scene {
   ContactSettings contact;
   OutputSettings output;
   Model model;
-  State initial;  // x = start positions, v = body velocities, a = 0 (set by the simulation)
+  State initial;  // x = start positions, v = body velocities (0 for obstacle vertices),
+                  // a = 0 (set by the simulation)
 };
 
 Scene load_scene(const std::filesystem::path& file);

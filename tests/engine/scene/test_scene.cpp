@@ -1,11 +1,14 @@
 // Scene loading: every kind of bad input is one clear error naming the file, the key and the
 // value; good scenes build the flat buffers they describe.
+#include "engine/output/frame_writer.hpp"
 #include "engine/scene/scene.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <sstream>
 
 using namespace nexdyn;
 
@@ -119,4 +122,288 @@ TEST_CASE("rotate_deg rotates about x then y then z and scale comes first") {
     found = found || (std::abs(X[3 * v] - 10.5) < 1e-12 && std::abs(X[3 * v + 1] - 1) < 1e-12 &&
                       std::abs(X[3 * v + 2] - 1) < 1e-12);
   CHECK(found);
+}
+
+// ---- contact settings and obstacles ----------------------------------------------------------
+
+namespace {
+
+// A unit quad in the plane y = -1 as an OBJ file: 4 vertices, one quad face (fan-split into 2
+// triangles) written with the v/vt/vn and negative index forms, plus lines the reader ignores.
+const char* kQuadObj = R"(# a quad
+mtllib none.mtl
+o quad
+v -1 -1 -1
+v  1 -1 -1
+v  1 -1  1
+v -1 -1  1
+vt 0 0
+vn 0 1 0
+s off
+f 1/1/1 -1//1 3/1 2
+)";
+
+// Writes `files` (name -> text) and the scene into one fresh folder and loads the scene, so that
+// relative mesh paths resolve against that folder.
+Scene scene_with_files(const std::string& json, const std::vector<std::pair<std::string, std::string>>& files,
+                       const std::string& tag = "obstacle") {
+  const auto dir = test::temp_dir(tag);
+  for (const auto& [name, text] : files) test::write_text(dir / name, text);
+  return load_scene(test::write_text(dir / (tag + ".json"), json));
+}
+
+std::string error_with_files(const std::string& json, const std::vector<std::pair<std::string, std::string>>& files) {
+  try {
+    scene_with_files(json, files, "bad");
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string shipped_mesh(const std::string& name) {
+  return (std::filesystem::path(NEXDYN_SOURCE_DIR) / "scenes" / "meshes" / name).string();
+}
+
+int count_lines_starting_with(const std::string& text, const std::string& prefix) {
+  int count = 0;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) count += line.rfind(prefix, 0) == 0;
+  return count;
+}
+
+}  // namespace
+
+TEST_CASE("a contact object switches contact on unless enabled is false") {
+  CHECK_FALSE(test::scene_from_json(scene_with("")).contact.enabled);
+  CHECK(test::scene_from_json(scene_with(R"("contact": {})")).contact.enabled);
+  const Scene off = test::scene_from_json(scene_with(R"("contact": { "enabled": false, "dhat": 0.01 })"));
+  CHECK_FALSE(off.contact.enabled);
+  CHECK(off.contact.dhat == 0.01);
+  // dhat left out stays 0: the contact code resolves it from the bodies' bounding box.
+  CHECK(test::scene_from_json(scene_with(R"("contact": {})")).contact.dhat == 0.0);
+  // An empty "obstacles" array needs no contact.
+  CHECK(test::scene_from_json(scene_with(R"("obstacles": [])")).model.obstacle_planes.empty());
+}
+
+TEST_CASE("an obstacle plane is parsed and its normal normalised") {
+  const Scene scene = test::scene_from_json(scene_with(R"("contact": {}, "obstacles": [
+      { "plane": { "point": [0, -2, 0], "normal": [0, 3, 4] } },
+      { "plane": { "point": [1, 2, 3], "normal": [0, 0, -0.5] } } ])"));
+  const Model& m = scene.model;
+  REQUIRE(m.obstacle_planes.size() == 2);
+  CHECK(m.obstacle_planes[0].point.isApprox(Eigen::Vector3d(0, -2, 0)));
+  CHECK(m.obstacle_planes[0].normal.isApprox(Eigen::Vector3d(0, 0.6, 0.8)));
+  CHECK(m.obstacle_planes[0].scene_entry == 0);
+  CHECK(m.obstacle_planes[1].normal.isApprox(Eigen::Vector3d(0, 0, -1)));
+  CHECK(m.obstacle_planes[1].scene_entry == 1);
+  // Planes add no vertices, bodies or motions.
+  CHECK(m.bodies.size() == 1);
+  CHECK(m.num_vertices == 27);
+  CHECK(m.dirichlet_motions.empty());
+}
+
+TEST_CASE("an obj obstacle becomes a fixed massless body after the bodies") {
+  // Obstacles 1 and 2 are the quad; "bodies" 0 and 1 are boxes. The boundary box covers
+  // everything in y <= -0.5, the quads included, and must hold only the boxes' bottom layers.
+  const std::string json = "{ " + std::string(kMaterials) + R"(,
+    "contact": {},
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" },
+                { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m",
+                  "translate": [3, 0, 0], "velocity": [0, -1, 0] } ],
+    "obstacles": [ { "plane": { "point": [0, -5, 0], "normal": [0, 1, 0] } },
+                   { "mesh": "quad.obj", "translate": [10, 0, 0], "scale": 2 },
+                   { "mesh": "quad.obj", "rotate_deg": [0, 90, 0] } ],
+    "boundary": [ { "box_min": [-9, -9, -9], "box_max": [9, -0.5, 9], "fix": true } ]
+  })";
+  const Scene scene = scene_with_files(json, {{"quad.obj", kQuadObj}});
+  const Model& m = scene.model;
+  REQUIRE(m.bodies.size() == 4);
+  // The "bodies" entries keep their indices and ranges; the obstacles follow.
+  for (int b = 0; b < 2; ++b) {
+    CHECK_FALSE(m.bodies[b].obstacle);
+    CHECK(m.bodies[b].scene_entry == b);
+    CHECK(m.bodies[b].vertex_begin == 8 * b);
+    CHECK(m.bodies[b].triangle_begin == 12 * b);
+  }
+  CHECK(m.num_tets == 2 * 6);
+  CHECK(m.num_vertices == 2 * 8 + 2 * 4);
+  CHECK(m.surface_triangles.size() == 3 * (2 * 12 + 2 * 2));
+  CHECK(m.surface_edges.size() == 2 * (2 * 18 + 2 * 5));
+  CHECK(m.surface_vertices.size() == size_t(m.num_vertices));
+  CHECK(std::is_sorted(m.surface_vertices.begin(), m.surface_vertices.end()));
+  REQUIRE(m.obstacle_planes.size() == 1);
+
+  // The boundary is motion 0; both obstacle meshes share motion 1, a fixed one.
+  REQUIRE(m.dirichlet_motions.size() == 2);
+  CHECK(m.dirichlet_motions[1].velocity.isZero());
+  CHECK(m.dirichlet_motions[1].angular_velocity == 0.0);
+  int held_by_boundary = 0;
+  for (int32_t d : m.dirichlet) held_by_boundary += d == 0;
+  CHECK(held_by_boundary == 2 * 4);
+
+  for (int k = 0; k < 2; ++k) {
+    const BodyRange& o = m.bodies[2 + k];
+    CHECK(o.obstacle);
+    CHECK(o.scene_entry == 1 + k);  // its index in "obstacles", planes included
+    CHECK(o.tet_count == 0);
+    CHECK(o.tet_begin == m.num_tets);
+    CHECK(o.vertex_begin == 16 + 4 * k);
+    CHECK(o.vertex_count == 4);
+    CHECK(o.triangle_begin == 24 + 2 * k);
+    CHECK(o.triangle_count == 2);
+    CHECK(o.edge_count == 5);
+    for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
+      CHECK(m.mass[v] == 0.0);
+      CHECK(m.dirichlet[v] == 1);
+      CHECK(m.vertex_body[v] == 2 + k);
+      for (int d = 0; d < 3; ++d) CHECK(scene.initial.v[3 * v + d] == 0.0);
+    }
+    // Edges are unique, a < b, inside the obstacle's vertex range.
+    for (int32_t e = o.edge_begin; e < o.edge_begin + o.edge_count; ++e) {
+      CHECK(m.surface_edges[2 * e] < m.surface_edges[2 * e + 1]);
+      CHECK(m.surface_edges[2 * e] >= o.vertex_begin);
+      CHECK(m.surface_edges[2 * e + 1] < o.vertex_begin + o.vertex_count);
+    }
+  }
+  // The obstacle transform: scale 2 then translate; the first quad vertex (-1,-1,-1) -> (8,-2,-2).
+  CHECK(Eigen::Vector3d::Map(&m.rest_positions[3 * 16]).isApprox(Eigen::Vector3d(8, -2, -2)));
+  // rotate_deg [0, 90, 0] takes (-1,-1,-1) to (-1,-1,1).
+  CHECK(Eigen::Vector3d::Map(&m.rest_positions[3 * 20]).isApprox(Eigen::Vector3d(-1, -1, 1)));
+  // Body 1's velocity is untouched by the obstacles appended after it.
+  CHECK(scene.initial.v[3 * 8 + 1] == -1.0);
+  CHECK(scene.initial.x.size() == 3 * size_t(m.num_vertices));
+  CHECK(scene.initial.a.size() == 3 * size_t(m.num_vertices));
+
+  // The quad's fan: f 1 4 3 2 -> triangles (1 4 3) and (1 3 2), 0-based (0 3 2) and (0 2 1).
+  const int32_t b = m.bodies[2].vertex_begin;
+  const int32_t* tri = &m.surface_triangles[3 * m.bodies[2].triangle_begin];
+  CHECK(std::vector<int32_t>(tri, tri + 6) == std::vector<int32_t>{b, b + 3, b + 2, b, b + 2, b + 1});
+}
+
+TEST_CASE("a msh obstacle is the boundary surface of its tets") {
+  const Scene scene = test::scene_from_json(scene_with(R"("contact": {}, "obstacles": [
+      { "mesh": ")" + shipped_mesh("sphere1K.msh") + R"(", "translate": [0, -3, 0] } ])"));
+  const Model& m = scene.model;
+  REQUIRE(m.bodies.size() == 2);
+  const BodyRange& o = m.bodies[1];
+  CHECK(o.obstacle);
+  CHECK(o.tet_count == 0);
+  CHECK(m.num_tets == 6 * 8);  // only the box's tets
+  // sphere1K.msh: 1760 nodes, 2474 boundary triangles. A closed genus-0 surface has
+  // V = F / 2 + 2 vertices and E = 3 F / 2 edges; the interior nodes are dropped.
+  CHECK(o.triangle_count == 2474);
+  CHECK(o.vertex_count == 2474 / 2 + 2);
+  CHECK(o.edge_count == 3 * 2474 / 2);
+  for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
+    CHECK(m.mass[v] == 0.0);
+    CHECK(m.dirichlet[v] == 0);  // no boundary entries: the shared fixed motion is motion 0
+    CHECK(m.rest_positions[3 * v + 1] < -2.4);
+  }
+  CHECK(m.dirichlet_motions.size() == 1);
+}
+
+TEST_CASE("the shipped bowl obj loads as an open shell") {
+  const Scene scene = test::scene_from_json(scene_with(R"("contact": {}, "obstacles": [
+      { "mesh": ")" + shipped_mesh("bowl.obj") + R"(" } ])"));
+  const BodyRange& o = scene.model.bodies.back();
+  REQUIRE(o.obstacle);
+  CHECK(o.vertex_count == 1 + 24 * 12);
+  CHECK(o.triangle_count == 24 + 2 * 24 * 11);
+  CHECK(o.edge_count == o.vertex_count + o.triangle_count - 1);  // a disc: V - E + F = 1
+  double lowest = 0.0, highest = -1.0;
+  for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
+    const Eigen::Vector3d p = Eigen::Vector3d::Map(&scene.model.rest_positions[3 * v]);
+    CHECK(p.norm() == doctest::Approx(0.5));
+    lowest = std::min(lowest, p.y());
+    highest = std::max(highest, p.y());
+  }
+  CHECK(lowest == doctest::Approx(-0.5));
+  CHECK(highest == doctest::Approx(0.0));
+}
+
+TEST_CASE("obstacle and contact errors name the key or the file") {
+  struct Case {
+    std::string json;
+    std::vector<std::pair<std::string, std::string>> files;
+    std::vector<std::string> must_contain;
+  };
+  const std::string contact = R"("contact": {}, )";
+  const std::vector<Case> cases = {
+      {scene_with(R"("obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ])"), {},
+       {"obstacles", "need contact", "\"contact\": {}"}},
+      {scene_with(R"("contact": { "enabled": false }, "obstacles": [ { "mesh": "q.obj" } ])"), {},
+       {"obstacles", "need contact"}},
+      {scene_with(contact + R"("obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 0, 0] } } ])"), {},
+       {"obstacles[0].plane.normal", "zero", "[0,0,0]"}},
+      {scene_with(contact + R"("obstacles": [ { "plane": { "point": [0, 0, 0] } } ])"), {},
+       {"obstacles[0].plane", "normal"}},
+      {scene_with(contact + R"("obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] }, "scale": 2 } ])"), {},
+       {"obstacles[0].scale", "unknown key"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj", "velocity": [0, 1, 0] } ])"), {{"q.obj", kQuadObj}},
+       {"obstacles[0].velocity", "unknown key"}},
+      {scene_with(contact + R"("obstacles": [ {} ])"), {}, {"obstacles[0]", "plane", "mesh"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "missing.obj" } ])"), {},
+       {"obstacles[0].mesh", "not found", "missing.obj"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.stl" } ])"), {{"q.stl", ""}},
+       {"obstacles[0].mesh", "q.stl", ".obj or .msh"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 x\n"}},
+       {"obstacles[0].mesh", "q.obj", "line 2", "\"x\""}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"}},
+       {"obstacles[0].mesh", "q.obj", "line 4", "\"4\""}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n"}},
+       {"q.obj", "line 3", "at least 3"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n"}},
+       {"q.obj", "line 4", "\"0\""}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"}},
+       {"obstacles[0].mesh", "q.obj", "line 4", "zero-area"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 2\n"}},
+       {"q.obj", "line 4", "zero-area"}},
+      {scene_with(contact + R"("obstacles": [ { "mesh": "q.obj" } ])"), {{"q.obj", "# nothing\nv 0 0 0\n"}},
+       {"obstacles[0].mesh", "q.obj", "no faces"}},
+      {scene_with(R"("contact": {}, "time": { "integrator": "central_difference" })"), {},
+       {"time.integrator", "central_difference", "explicit"}},
+      {scene_with(R"("contact": {}, "time": { "integrator": "symplectic_euler" })"), {},
+       {"time.integrator", "symplectic_euler"}},
+      {scene_with(R"("contact": {}, "time": { "beta": 0 })"), {}, {"time.integrator", "custom", "beta = 0"}},
+      {scene_with(R"("contact": { "friction": 0.3 })"), {}, {"contact.friction", "not available yet", "0.3"}},
+      {scene_with(R"("contact": { "friction": -1 })"), {}, {"contact.friction", "-1"}},
+      {scene_with(R"("joints": [ { "type": "pin", "body": 0, "point": [0, 0, 0] } ])"), {}, {"joints", "not available"}},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.json);
+    const std::string message = error_with_files(c.json, c.files);
+    REQUIRE_FALSE(message.empty());
+    for (const std::string& part : c.must_contain) {
+      CAPTURE(message);
+      CHECK(message.find(part) != std::string::npos);
+    }
+  }
+  // Without contact an explicit integrator stays allowed, and friction 0 is accepted.
+  CHECK(error_of(scene_with(R"("time": { "integrator": "central_difference" })")).empty());
+  CHECK(error_of(scene_with(R"("contact": { "friction": 0 })")).empty());
+}
+
+TEST_CASE("obj frames leave obstacle triangles out and vtu frames keep obstacle points") {
+  const std::string json = "{ " + std::string(kMaterials) + R"(, "contact": {},
+    "bodies": [ )" + kBox + R"( ], "obstacles": [ { "mesh": "quad.obj" } ] })";
+  const Scene scene = scene_with_files(json, {{"quad.obj", kQuadObj}});
+  const Model& m = scene.model;
+  REQUIRE(m.bodies.size() == 2);
+  const std::string obj = obj_document(m, scene.initial.x);
+  // Every vertex is listed (global numbering), only the box's 48 boundary triangles are faces.
+  CHECK(count_lines_starting_with(obj, "v ") == m.num_vertices);
+  CHECK(count_lines_starting_with(obj, "f ") == m.bodies[0].triangle_count);
+  CHECK(count_lines_starting_with(obj, "f ") == 48);
+  // A face line never refers to an obstacle vertex.
+  std::istringstream in(obj);
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("f ", 0) != 0) continue;
+    std::istringstream f(line.substr(2));
+    for (int id; f >> id;) CHECK(id <= m.bodies[0].vertex_count);
+  }
+  // VTU: obstacle vertices are points used by no cell.
+  const std::string vtu = vtu_document(m, scene.initial.x, scene.initial.v);
+  CHECK(vtu.find("NumberOfPoints=\"" + std::to_string(m.num_vertices) + "\"") != std::string::npos);
+  CHECK(vtu.find("NumberOfCells=\"" + std::to_string(m.num_tets) + "\"") != std::string::npos);
 }
