@@ -60,7 +60,7 @@ struct Problem {
       x[3 * v + 1] -= 0.02 * s * s;
     }
     x_tilde = model.rest_positions;
-    potential->begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
+    potential->begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
     grad.resize(model.num_dofs());
     direction.resize(model.num_dofs());
     values.resize(potential->pattern().nnz());

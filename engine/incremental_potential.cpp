@@ -2,20 +2,38 @@
 #include "engine/incremental_potential.hpp"
 
 #include "engine/parallel.hpp"
+#include "kernels/barrier/barrier.hpp"
+
+#include <Eigen/Core>
 
 #include <cmath>
 #include <limits>
 
 namespace nexdyn {
 
-double IncrementalPotential::energy(const double* x) const {
-  const double elastic = elastic_.energy(x);
-  if (!std::isfinite(elastic)) return std::numeric_limits<double>::infinity();
+IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic,
+                                           BarrierPotential* contact)
+    : model_(model), elastic_(elastic), contact_(contact) {
+  if (!contact_) return;
+  contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern());
+  elastic_values_.resize(elastic_.pattern().nnz());
+  bbox_diagonal_ = bodies_bbox_diagonal(model);
+  double mass = 0.0;
+  int64_t free = 0;
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (model.dirichlet[v] < 0) {
+      mass += model.mass[v];
+      ++free;
+    }
+  average_mass_ = free > 0 ? mass / free : 1.0;
+}
+
+double IncrementalPotential::inertia_gravity_energy(const double* x) const {
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
   const double inertia = inertia_, scale = scale_;
-  const double rest = deterministic_sum(model_.num_vertices, [&](int64_t begin, int64_t end) {
+  return deterministic_sum(model_.num_vertices, [&](int64_t begin, int64_t end) {
     double sum = 0.0;
     for (int64_t v = begin; v < end; ++v) {
       double kinetic = 0.0, work = 0.0;
@@ -28,21 +46,71 @@ double IncrementalPotential::energy(const double* x) const {
     }
     return sum;
   }, 1024);
-  return rest + scale * elastic;
+}
+
+double IncrementalPotential::energy(const double* x) const {
+  const double elastic = elastic_.energy(x);
+  if (!std::isfinite(elastic)) return std::numeric_limits<double>::infinity();
+  double barrier = 0.0;
+  if (contact_) {
+    barrier = contact_->energy(x);
+    if (!std::isfinite(barrier)) return std::numeric_limits<double>::infinity();
+  }
+  return inertia_gravity_energy(x) + scale_ * elastic + contact_scale_ * kappa_ * barrier;
+}
+
+void IncrementalPotential::begin_solve(const double* x) {
+  if (!contact_) return;
+  contact_->find_candidates(x, nullptr);
+  // Initial stiffness (IPC supplemental sec. 3) from the gradients of E / s without the barrier
+  // and of the barrier sum, with the held DOFs left out: the kappa that best balances them.
+  const int64_t n = model_.num_dofs();
+  Eigen::VectorXd grad_energy(n), grad_barrier = Eigen::VectorXd::Zero(n);
+  elastic_.energy_gradient(x, grad_energy.data());
+  const double* xt = x_tilde_->data();
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{v} + d;
+      grad_energy[i] += -model_.mass[v] * model_.gravity[d] + inertia_ * model_.mass[v] * (x[i] - xt[i]) / scale_;
+    }
+  contact_->assemble(x, 1.0, false);
+  contact_->add_gradient(grad_barrier.data());
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    if (model_.dirichlet[v] >= 0) {
+      grad_energy.segment<3>(3 * int64_t{v}).setZero();
+      grad_barrier.segment<3>(3 * int64_t{v}).setZero();
+    }
+  const double dhat2 = contact_->dhat() * contact_->dhat();
+  // The heuristic works on E / s_c = (E without barrier) / s_c + kappa B: its gradient is
+  // (s / s_c) grad(E / s), and its inertia term is M / s_c.
+  const double ratio = scale_ / contact_scale_;
+  grad_energy *= ratio;
+  kappa_ = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
+                                     grad_energy, grad_barrier, kappa_max_);
+  prev_min_distance_ = contact_->min_squared_distance(x);
+}
+
+void IncrementalPotential::prepare(const double* x, bool first_iteration) {
+  if (!contact_) return;
+  contact_->assemble(x, contact_scale_ * kappa_, true);
+  contact_pattern_->update(contact_->stencils(), first_iteration);
 }
 
 void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values) {
-  elastic_.gradient_hessian(x, grad, values);
+  const bool merge = contact_ != nullptr;
+  const CscPattern& pattern = this->pattern();
+  double* elastic_values = merge ? elastic_values_.data() : values;
+  elastic_.gradient_hessian(x, grad, elastic_values);
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
-  const HessianPattern& pattern = elastic_.pattern();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
   const double inertia = inertia_, scale = scale_;
-  const int64_t num_values = pattern.nnz();
   // Scale the elastic part by s, then add the mass diagonal and the inertia/gravity gradient.
-  parallel_for(num_values, [&](int64_t begin, int64_t end) {
-    for (int64_t k = begin; k < end; ++k) values[k] *= scale;
+  parallel_for(elastic_.pattern().nnz(), [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) elastic_values[k] *= scale;
   }, 8192);
+  // The contact slabs are already weighted by s_c kappa (prepare()).
+  if (merge) contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values);
   parallel_for(model_.num_vertices, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v)
       for (int d = 0; d < 3; ++d) {
@@ -51,6 +119,34 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
         values[pattern.diagonal[i]] += inertia * m[v];
       }
   }, 1024);
+  if (merge) contact_->add_gradient(grad);
+}
+
+double IncrementalPotential::max_step(const double* x, const double* p) {
+  return contact_ ? contact_->max_step(x, p) : 1.0;
+}
+
+void IncrementalPotential::remove_contact_acceleration(const double* x, std::vector<double>& a) {
+  if (!contact_) return;
+  // grad of s_c kappa B; update_implicit divided it by s (with a minus: a force).
+  contact_->assemble(x, contact_scale_ * kappa_, false);
+  std::vector<double> grad(model_.num_dofs(), 0.0);
+  contact_->add_gradient(grad.data());
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
+    for (int d = 0; d < 3; ++d) a[3 * v + d] += grad[3 * v + d] / (scale_ * model_.mass[v]);
+  }
+}
+
+bool IncrementalPotential::end_iteration(const double* x) {
+  if (!contact_) return false;
+  const double min_distance = contact_->min_squared_distance(x);
+  const double kappa = update_barrier_stiffness(prev_min_distance_, min_distance, kappa_max_, kappa_,
+                                                bbox_diagonal_);
+  prev_min_distance_ = min_distance;
+  const bool changed = kappa != kappa_;
+  kappa_ = kappa;
+  return changed;
 }
 
 }  // namespace nexdyn

@@ -11,12 +11,26 @@
 
 namespace nexdyn {
 
+double resolved_dhat(const Scene& scene) {
+  if (scene.contact.dhat > 0.0) return scene.contact.dhat;
+  const double diagonal = bodies_bbox_diagonal(scene.model);
+  return diagonal > 0.0 ? 1e-3 * diagonal : 1e-3;
+}
+
+namespace {
+std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
+  if (!scene.contact.enabled) return nullptr;
+  return std::make_unique<BarrierPotential>(scene.model, resolved_dhat(scene));
+}
+}  // namespace
+
 Simulation::Simulation(const Scene& scene)
     : scene_(scene), model_(scene.model), state_(scene.initial), elastic_(scene.model),
-      potential_(scene.model, elastic_) {
+      contact_(make_contact(scene)), potential_(scene.model, elastic_, contact_.get()) {
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
   force_.resize(n);
+  motion_.resize(n);
   state_.a.assign(n, 0.0);
   state_.x_tilde = state_.x;
   // Prescribed vertices start with their prescribed velocity and acceleration.
@@ -84,14 +98,11 @@ StepOutcome Simulation::step() {
     state_.x.swap(x_next_);
   } else {
     if (!newton_) newton_ = std::make_unique<NewtonSolver>(model_, potential_);
-    // Start Newton from the predictor when it is a valid state (fewer iterations), else from x_n.
-    potential_.begin_step(state_.x_tilde, integrator.potential_scale(dt), !integrator.is_static);
-    x_next_ = integrator.is_static ? state_.x : state_.x_tilde;
-    prescribe(t_next, x_next_, nullptr, nullptr);
-    if (!std::isfinite(potential_.energy(x_next_.data()))) {
-      x_next_ = state_.x;
-      prescribe(t_next, x_next_, nullptr, nullptr);
-    }
+    const double scale = integrator.potential_scale(dt);
+    potential_.begin_step(state_.x_tilde, scale, integrator.is_static ? scale : scale / integrator.gamma,
+                          !integrator.is_static);
+    outcome = start_point(t_next);
+    if (outcome.status != StepStatus::ok) return outcome;
     NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
     const NewtonResult result = newton_->solve(x_next_, settings);
     iterations = result.iterations;
@@ -103,6 +114,7 @@ StepOutcome Simulation::step() {
       state_.x.swap(x_next_);
     } else {
       update_implicit(integrator, dt, x_next_, state_.x_tilde, state_.v, state_.a);
+      potential_.remove_contact_acceleration(x_next_.data(), state_.a);
       state_.x.swap(x_next_);
     }
   }
@@ -117,6 +129,44 @@ StepOutcome Simulation::step() {
   measure(stats_);
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return outcome;
+}
+
+StepOutcome Simulation::start_point(double t_next) {
+  const bool is_static = scene_.time.integrator.is_static;
+  // x_n with the held vertices at their targets: the fallback start.
+  x_next_ = state_.x;
+  prescribe(t_next, x_next_, nullptr, nullptr);
+  const int64_t n = model_.num_dofs();
+  if (!contact_) {
+    // Start from the predictor when it is a valid state (fewer iterations), else from x_n.
+    if (is_static) return {};
+    std::vector<double>& trial = a_next_;
+    trial = state_.x_tilde;
+    prescribe(t_next, trial, nullptr, nullptr);
+    if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
+    return {};
+  }
+  // With contact, every point Newton visits must be intersection-free. The held vertices' own
+  // motion x_n -> targets is not the solver's to change: it must not run into contact.
+  if (model_.has_dirichlet()) {
+    for (int64_t i = 0; i < n; ++i) motion_[i] = x_next_[i] - state_.x[i];
+    if (contact_->max_step(state_.x.data(), motion_.data()) < 1.0)
+      return {StepStatus::boundary_collision, "the prescribed motion of the boundary vertices runs into "
+                                      "contact; this version cannot push bodies with it"};
+  }
+  if (is_static) return {};
+  // Then as far toward the predictor as CCD allows (it stops short of any contact).
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{v} + d;
+      motion_[i] = model_.dirichlet[v] >= 0 ? 0.0 : state_.x_tilde[i] - x_next_[i];
+    }
+  const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+  std::vector<double>& trial = a_next_;
+  trial.resize(n);
+  for (int64_t i = 0; i < n; ++i) trial[i] = x_next_[i] + alpha * motion_[i];
+  if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
+  return {};
 }
 
 void Simulation::measure(StepStats& stats) const {
@@ -136,10 +186,16 @@ void Simulation::measure(StepStats& stats) const {
   stats.elastic_energy = elastic_.energy(x.data());
   stats.gravity_energy = gravity;
   stats.barrier_energy = 0.0;
-  stats.total_energy = kinetic + stats.elastic_energy + gravity + stats.barrier_energy;
-  stats.momentum = momentum;
   stats.contacts = 0;
   stats.min_distance = std::numeric_limits<double>::infinity();
+  if (contact_) {
+    const BarrierPotential::Summary summary = contact_->summarize(x.data());
+    stats.barrier_energy = potential_.barrier_stiffness() * summary.barrier;
+    stats.contacts = summary.active;
+    stats.min_distance = summary.min_distance;
+  }
+  stats.total_energy = kinetic + stats.elastic_energy + gravity + stats.barrier_energy;
+  stats.momentum = momentum;
 }
 
 }  // namespace nexdyn

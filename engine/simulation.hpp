@@ -2,7 +2,9 @@
 //
 //   1. prescribe   Dirichlet vertices move to their targets at t + dt (analytic x, v, a)
 //   2. predict     x_tilde = x + h v + alpha (1 - 2 beta) h^2 a          (integrator.cpp)
-//   3. solve       implicit: Newton on the incremental potential          (solver/newton.cpp)
+//   3. solve       implicit: Newton on the incremental potential          (solver/newton.cpp),
+//                  with contact starting from the largest collision-free part of the
+//                  predictor's motion
 //                  explicit: x = x_tilde, a = M^-1 f(x)
 //   4. update      a, v from the integrator family                          (integrator.cpp)
 //   5. measure     energies and momentum for stats.csv
@@ -22,6 +24,9 @@
 #include <string>
 
 namespace nexdyn {
+
+// dhat [m] of a scene: contact.dhat, or 1e-3 of the bodies' bounding-box diagonal when absent.
+double resolved_dhat(const Scene& scene);
 
 // One row of stats.csv (DESIGN.md section 6).
 struct StepStats {
@@ -60,14 +65,18 @@ class Simulation {
   // a = M^-1 f(x) on free vertices; false if f is not finite.
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
 
+  // Newton's starting point for the step to t_next (written into x_next_).
+  StepOutcome start_point(double t_next);
+
   const Scene& scene_;
   const Model& model_;
   State state_;
   StepStats stats_;
   ElasticAssembly elastic_;
+  std::unique_ptr<BarrierPotential> contact_;  // null without contact
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
-  std::vector<double> x_next_, a_next_, force_;  // (3n) step workspaces, allocated once
+  std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
 };
 
 }  // namespace nexdyn

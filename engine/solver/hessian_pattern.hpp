@@ -13,13 +13,21 @@
 
 namespace nexdyn {
 
-struct HessianPattern {
-  static constexpr int64_t kMaxTets = (int64_t{1} << 32) / 144;  // 29.8 M tets
-
+// The upper triangle of a symmetric matrix in CSC form, 3 DOFs per vertex. Every vertex column J
+// holds whole 3x3 blocks: for each neighbour vertex I < J rows 3I..3I+2, then rows 3J..3J+d of
+// its diagonal block (d = 0, 1, 2 for the DOF columns 3J+d).
+struct CscPattern {
   int64_t num_dofs = 0;
   std::vector<int64_t> col_ptr;  // (num_dofs + 1) CSC column starts
   std::vector<int64_t> row_idx;  // (nnz) row of each value, sorted within a column, row <= col
   std::vector<int64_t> diagonal; // (num_dofs) value index of each diagonal entry
+
+  int64_t nnz() const { return static_cast<int64_t>(row_idx.size()); }
+};
+
+struct HessianPattern : CscPattern {
+  static constexpr int64_t kMaxTets = (int64_t{1} << 32) / 144;  // 29.8 M tets
+
   // Gather table over segments. A segment is a run of 1-3 consecutive values of one column that
   // come from one 3x3 vertex block (rows 3I..3I+2, or 3J..3J+d on the diagonal), so every tet
   // that touches it contributes 1-3 consecutive entries of its slab: one index serves them all.
@@ -32,7 +40,6 @@ struct HessianPattern {
                                             // ordered by tet within each segment
 
   int64_t num_segments() const { return static_cast<int64_t>(segment_value.size()); }
-  int64_t nnz() const { return static_cast<int64_t>(row_idx.size()); }
 };
 
 // Builds the pattern of a tet mesh with `num_vertices` vertices, 3 DOFs each. Throws

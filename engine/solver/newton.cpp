@@ -23,25 +23,31 @@ std::string format(const char* fmt, double a, double b = 0.0) {
 
 NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
     : model_(model), potential_(potential) {
-  const HessianPattern& pattern = potential_.pattern();
-  const int64_t n = pattern.num_dofs;
+  const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
   for (int32_t v = 0; v < model.num_vertices; ++v)
     if (model.dirichlet[v] >= 0)
       for (int d = 0; d < 3; ++d) constrained_dof_[3 * v + d] = 1;
-  for (int64_t c = 0; c < n; ++c)
+  grad_.resize(n);
+  direction_.resize(n);
+  trial_.resize(n);
+  analyze_pattern();
+}
+
+void NewtonSolver::analyze_pattern() {
+  const CscPattern& pattern = potential_.pattern();
+  constrained_values_.clear();
+  for (int64_t c = 0; c < pattern.num_dofs; ++c)
     for (int64_t k = pattern.col_ptr[c]; k < pattern.col_ptr[c + 1]; ++k)
       if (constrained_dof_[c] || constrained_dof_[pattern.row_idx[k]])
         constrained_values_.push_back(k);
-  grad_.resize(n);
-  direction_.resize(n);
   values_.resize(pattern.nnz());
-  trial_.resize(n);
-  cholmod_.analyze(n, pattern.col_ptr.data(), pattern.row_idx.data());
+  cholmod_.analyze(pattern.num_dofs, pattern.col_ptr.data(), pattern.row_idx.data());
+  analyzed_version_ = potential_.pattern_version();
 }
 
 void NewtonSolver::eliminate_dirichlet(double* grad, double* values) const {
-  const HessianPattern& pattern = potential_.pattern();
+  const CscPattern& pattern = potential_.pattern();
   for (int64_t k : constrained_values_) values[k] = 0.0;
   for (int64_t i = 0; i < pattern.num_dofs; ++i)
     if (constrained_dof_[i]) {
@@ -53,13 +59,20 @@ void NewtonSolver::eliminate_dirichlet(double* grad, double* values) const {
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
   const int64_t n = static_cast<int64_t>(x.size());
+  potential_.begin_solve(x.data());
   double energy = potential_.energy(x.data());
   if (!std::isfinite(energy)) {
     result.status = StepStatus::non_finite;
-    result.message = "the starting point of the step has infinite energy (an inverted tet)";
+    result.message = "the starting point of the step has infinite energy (an inverted tet or "
+                     "touching contact)";
     return result;
   }
   for (int it = 0; it < settings.max_iterations; ++it) {
+    potential_.prepare(x.data(), it == 0);
+    if (potential_.pattern_version() != analyzed_version_) {
+      analyze_pattern();
+      ++result.analyses;
+    }
     potential_.gradient_hessian(x.data(), grad_.data(), values_.data());
     eliminate_dirichlet(grad_.data(), values_.data());
     if (!std::all_of(grad_.begin(), grad_.end(), [](double g) { return std::isfinite(g); })) {
@@ -90,7 +103,12 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     // Backtracking line search. Energies are compared with a round-off allowance: near the
     // minimum the decrease s*alpha*g.p can be smaller than the error of summing E itself.
     const double noise = 1e-13 * std::max(1.0, std::abs(energy));
-    double alpha = 1.0, trial_energy = 0.0;
+    double alpha = potential_.max_step(x.data(), direction_.data()), trial_energy = 0.0;
+    if (!(alpha > 0.0)) {
+      result.status = StepStatus::line_search_failed;
+      result.message = "continuous collision detection allows no motion along the Newton direction";
+      return result;
+    }
     for (;;) {
       for (int64_t i = 0; i < n; ++i) trial_[i] = x[i] + alpha * direction_[i];
       trial_energy = potential_.energy(trial_.data());
@@ -105,6 +123,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     }
     x.swap(trial_);
     energy = trial_energy;
+    if (potential_.end_iteration(x.data())) energy = potential_.energy(x.data());
   }
   result.status = StepStatus::max_iterations;
   result.message = format("Newton did not converge in the iteration limit (last increment "

@@ -1,10 +1,15 @@
-// Projected Newton on the incremental potential with a backtracking (Armijo) line search.
+// Projected Newton on the incremental potential with a CCD-capped backtracking (Armijo) line
+// search (DESIGN.md section 5).
 //
 // Per iteration: gradient and PSD-projected Hessian (parallel, deterministic), Dirichlet DOFs
 // eliminated (their rows and columns become identity, their gradient zero), CHOLMOD numeric
-// factorisation on the cached symbolic analysis, direction p = -H^-1 g. Converged when the
-// increment in velocity units, max|p| / dt, is below the tolerance. A failure is returned as a
-// StepStatus with a sentence saying why; the solver never accepts a step it could not finish.
+// factorisation (the symbolic analysis is redone only when contact changed the pattern),
+// direction p = -H^-1 g. Converged when the increment in velocity units, max|p| / dt, is below
+// the tolerance. Otherwise the step length starts at the largest collision-free fraction of p
+// (continuous collision detection) and halves until the energy decreases enough; with contact
+// every trial point is intersection-free and its barrier is evaluated over the pairs close to the
+// whole segment. A failure is returned as a StepStatus with a sentence saying why; the solver
+// never accepts a step it could not finish.
 #pragma once
 
 #include "engine/incremental_potential.hpp"
@@ -26,6 +31,7 @@ struct NewtonSettings {
 struct NewtonResult {
   StepStatus status = StepStatus::ok;
   int iterations = 0;        // linear solves
+  int analyses = 0;          // symbolic factorisations (pattern changes)
   double increment = 0.0;    // last max|p| / dt [m/s]
   double energy = 0.0;       // E at the returned x
   std::string message;       // why it failed; empty when ok
@@ -41,10 +47,13 @@ class NewtonSolver {
 
  private:
   void eliminate_dirichlet(double* grad, double* values) const;
+  // (Re)does the symbolic analysis and the Dirichlet bookkeeping for the potential's pattern.
+  void analyze_pattern();
 
   const Model& model_;
   IncrementalPotential& potential_;
   CholmodSolver cholmod_;
+  int64_t analyzed_version_ = -1;
   std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
   std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
   std::vector<double> grad_, direction_, values_, trial_;

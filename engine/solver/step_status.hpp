@@ -11,6 +11,7 @@ enum class StepStatus {
   line_search_failed,     // no step length decreased the energy
   factorization_failed,   // CHOLMOD refused the matrix (not positive definite)
   non_finite,             // NaN/inf in the energy or gradient, or an inverted start
+  boundary_collision,     // the prescribed motion of held vertices runs into contact
 };
 
 inline std::string_view step_status_name(StepStatus s) {
@@ -20,6 +21,7 @@ inline std::string_view step_status_name(StepStatus s) {
     case StepStatus::line_search_failed: return "line_search_failed";
     case StepStatus::factorization_failed: return "factorization_failed";
     case StepStatus::non_finite: return "non_finite";
+    case StepStatus::boundary_collision: return "boundary_collision";
   }
   return "?";
 }

@@ -90,7 +90,7 @@ TEST_CASE("incremental potential: gradient matches central differences of the en
   ElasticAssembly assembly(model);
   IncrementalPotential potential(model, assembly);
   const std::vector<double> x_tilde = perturbed(model, 0.01, 3);
-  potential.begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
+  potential.begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
   std::vector<double> x = perturbed(model, 0.02, 11);
   std::vector<double> grad(model.num_dofs()), values(potential.pattern().nnz());
   potential.gradient_hessian(x.data(), grad.data(), values.data());

@@ -1,0 +1,52 @@
+// Contact candidates: the primitive pairs whose distance may be below a threshold somewhere on a
+// linear motion x0 -> x1 (DESIGN.md section 5; issue 3, "broad phase").
+//
+// The collision mesh is the Model's surface (all bodies and obstacle meshes) plus its analytic
+// obstacle planes. Pairs are vertex-triangle, edge-edge and vertex-plane. Pairs that can never be
+// a contact are dropped here, once, so every later stage loops over useful pairs only:
+//   * a vertex against a triangle it is a corner of, and two edges sharing a vertex (adjacent);
+//   * pairs with no free vertex (all four Dirichlet-held, e.g. two triangles of one obstacle):
+//     nothing in the solve can move them, so they carry no force and no CCD limit.
+//
+// Broad phase: Embree BVHs over the primitives' boxes (bvh/broad_phase.hpp). A primitive's box
+// covers it at x0 and at x1, so by convexity it covers the primitive at every point of the
+// motion; inflated by r on every side, two boxes overlap whenever the primitives come within 2 r
+// of each other at some time in [0, 1]. Output lists are sorted and equal to the brute-force
+// reference whatever the number of threads.
+#pragma once
+
+#include "bvh/broad_phase.hpp"
+#include "engine/model.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+struct ContactCandidates {
+  std::vector<IndexPair> vertex_triangle;  // (vertex id, surface triangle index), sorted
+  std::vector<IndexPair> edge_edge;        // (surface edge a, surface edge b), a < b, sorted
+  std::vector<IndexPair> vertex_plane;     // (vertex id, obstacle plane index), sorted
+
+  int64_t size() const {
+    return static_cast<int64_t>(vertex_triangle.size() + edge_edge.size() + vertex_plane.size());
+  }
+  void clear() {
+    vertex_triangle.clear();
+    edge_edge.clear();
+    vertex_plane.clear();
+  }
+};
+
+// Every non-adjacent pair with a free vertex that may come closer than 2 * inflation along
+// x0 -> x1 (positions (num_vertices x 3)); x1 == nullptr means the static configuration x0.
+// Vertex-plane pairs: the vertex's signed distance to the plane is below 2 * inflation at x0 or
+// x1 (it is linear in time, so that covers the whole motion).
+void find_contact_candidates(const Model& model, const double* x0, const double* x1,
+                             double inflation, ContactCandidates& out);
+
+// The O(n^2) reference with the same contract, for tests.
+void find_contact_candidates_brute_force(const Model& model, const double* x0, const double* x1,
+                                         double inflation, ContactCandidates& out);
+
+}  // namespace nexdyn

@@ -1,0 +1,64 @@
+// The Newton matrix's pattern when contact couples vertices that no tet couples.
+//
+// Pattern = the elastic pattern plus a 3x3 block for every vertex pair of some contact stencil.
+// Contact pairs come and go every iteration, but CHOLMOD's symbolic analysis is only valid for
+// one pattern, and redoing it costs about as much as a factorisation. So the pattern keeps every
+// pair it has been given (a superset is still a valid pattern: absent pairs are stored zeros) and
+// is rebuilt only when a stencil needs a pair it lacks, or, at the start of a step, when it has
+// grown to several times what the current contacts need.
+//
+// Values: the elastic values (in the elastic pattern's order) are merged column by column, then
+// the contact slabs are added through a gather table built per active set: entries are bucketed
+// by column and kept in pair order within a column, so every value is summed in the same order
+// whatever the number of threads.
+#pragma once
+
+#include "engine/solver/hessian_pattern.hpp"
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace nexdyn {
+
+class ContactPattern {
+ public:
+  explicit ContactPattern(const HessianPattern& elastic);
+
+  // Makes the pattern hold every vertex pair of the stencils ((num x 4) vertex ids, -1 = none)
+  // and builds their gather table. With allow_shrink, a pattern holding over 4x the pairs the
+  // stencils need is rebuilt to fit them. Returns true when the pattern changed.
+  bool update(const std::vector<int32_t>& stencils, bool allow_shrink);
+
+  const CscPattern& pattern() const { return merged_; }
+  // Incremented by every rebuild of the pattern.
+  int64_t version() const { return version_; }
+  int64_t num_contact_pairs() const { return static_cast<int64_t>(contact_pairs_.size()); }
+
+  // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
+  // of their 12x12 slabs (column-major, 144 per stencil, as given to update()).
+  void assemble(const double* elastic_values, const double* contact_slabs, double* values) const;
+
+ private:
+  void rebuild(std::vector<std::pair<int32_t, int32_t>> pairs);
+  // Value index of the first row of block (vertex row I, DOF column c) in the merged pattern,
+  // or -1 when the block is absent.
+  int64_t block_value(int32_t i, int64_t column) const;
+
+  const HessianPattern& elastic_;
+  CscPattern merged_;
+  int64_t version_ = 0;
+  std::vector<int32_t> elastic_neighbor_ptr_;            // (num_vertices + 1) CSR
+  std::vector<int32_t> elastic_neighbors_;               // vertices I < J coupled by a tet
+  std::vector<std::pair<int32_t, int32_t>> contact_pairs_;  // sorted (J, I), I < J, not elastic
+
+  struct Entry {
+    int64_t value;    // first value of the 1-3 consecutive rows
+    uint32_t source;  // slab index of the first row: stencil * 144 + local_col * 12 + local_row
+    uint32_t length;  // rows: 3, or 1-3 in a diagonal block
+  };
+  std::vector<int64_t> entry_ptr_;  // (num_dofs + 1) entries of each column
+  std::vector<Entry> entries_;
+};
+
+}  // namespace nexdyn
