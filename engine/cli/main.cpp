@@ -27,6 +27,9 @@ void apply_integrator_override(Scene& scene, const std::string& name) {
     for (const std::string& n : integrator_preset_names()) list += (list.empty() ? "" : ", ") + n;
     throw std::runtime_error("--integrator: unknown integrator \"" + name + "\" (known: " + list + ")");
   }
+  if (scene.contact.enabled && preset->is_explicit())
+    throw std::runtime_error("--integrator: " + name + " is explicit, and explicit schemes cannot "
+                             "keep contact intersection-free (the scene has contact)");
   scene.time.integrator = *preset;
 }
 

@@ -8,6 +8,7 @@
 // Model::obstacle_planes.
 #include "engine/scene/scene.hpp"
 
+#include "engine/contact/start_check.hpp"
 #include "engine/mesh/box_mesher.hpp"
 #include "engine/mesh/msh_reader.hpp"
 #include "engine/mesh/surface.hpp"
@@ -773,6 +774,10 @@ Scene load_scene(const fs::path& file) {
   scene.initial.x = scene.model.rest_positions;
   scene.initial.a.assign(scene.initial.x.size(), 0.0);
   scene.initial.x_tilde = scene.initial.x;
+  if (scene.contact.enabled) {
+    const std::string problem = initial_contact_problem(scene.model);
+    if (!problem.empty()) throw SceneError(file.string() + ": " + problem);
+  }
   return scene;
 }
 

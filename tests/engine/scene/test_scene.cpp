@@ -304,8 +304,9 @@ TEST_CASE("a msh obstacle is the boundary surface of its tets") {
 }
 
 TEST_CASE("the shipped bowl obj loads as an open shell") {
+  // The bowl is moved down, clear of the box at the origin (touching would be refused).
   const Scene scene = test::scene_from_json(scene_with(R"("contact": {}, "obstacles": [
-      { "mesh": ")" + shipped_mesh("bowl.obj") + R"(" } ])"));
+      { "mesh": ")" + shipped_mesh("bowl.obj") + R"(", "translate": [0, -5, 0] } ])"));
   const BodyRange& o = scene.model.bodies.back();
   REQUIRE(o.obstacle);
   CHECK(o.vertex_count == 1 + 24 * 12);
@@ -314,9 +315,9 @@ TEST_CASE("the shipped bowl obj loads as an open shell") {
   double lowest = 0.0, highest = -1.0;
   for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&scene.model.rest_positions[3 * v]);
-    CHECK(p.norm() == doctest::Approx(0.5));
-    lowest = std::min(lowest, p.y());
-    highest = std::max(highest, p.y());
+    CHECK((p - Eigen::Vector3d(0, -5, 0)).norm() == doctest::Approx(0.5));
+    lowest = std::min(lowest, p.y() + 5.0);
+    highest = std::max(highest, p.y() + 5.0);
   }
   CHECK(lowest == doctest::Approx(-0.5));
   CHECK(highest == doctest::Approx(0.0));
