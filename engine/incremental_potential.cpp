@@ -85,8 +85,15 @@ void IncrementalPotential::begin_solve(const double* x) {
   // (s / s_c) grad(E / s), and its inertia term is M / s_c.
   const double ratio = scale_ / contact_scale_;
   grad_energy *= ratio;
-  kappa_ = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
-                                     grad_energy, grad_barrier, kappa_max_);
+  // The stiffness is a property of the simulation, not of a step: a kappa that changed from
+  // step to step would change the barrier's stored energy under resting contact and pump energy
+  // into a stack. So it is set at the first solve with contact (kappa_min until then) and after
+  // that only raised by the adaptive rule.
+  if (!kappa_from_contact_) {
+    kappa_ = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
+                                       grad_energy, grad_barrier, kappa_max_);
+    kappa_from_contact_ = grad_barrier.squaredNorm() > 0.0;
+  }
   prev_min_distance_ = contact_->min_squared_distance(x);
 }
 

@@ -82,8 +82,9 @@ class IncrementalPotential {
   double scale_ = 1.0;
   double contact_scale_ = 1.0;
   double inertia_ = 1.0;
-  // Adaptive barrier stiffness (IPC supplemental sec. 3), reset at every solve.
+  // Adaptive barrier stiffness (IPC supplemental sec. 3), kept from step to step.
   double kappa_ = 0.0, kappa_max_ = 0.0;
+  bool kappa_from_contact_ = false;  // kappa_ was balanced against a contact gradient
   double bbox_diagonal_ = 1.0, average_mass_ = 0.0;
   double prev_min_distance_ = 0.0;  // squared
 };

@@ -264,7 +264,7 @@ BarrierPotential::Summary BarrierPotential::summarize(const double* x) const {
   const double limit = 4.0 * bodies_bbox_diagonal(model_) + dhat_;
   ContactCandidates far;
   for (double r = 0.5 * dhat_; min_d > 4.0 * r * r && r < limit;) {
-    r *= 4.0;
+    r *= 2.0;
     find_contact_candidates(model_, x, nullptr, r, far);
     far.vertex_plane.clear();  // planes are handled exactly below
     min_d = std::min(min_d, reduce_pairs(model_, far, x, dhat2_, kInf, MinDistance{}));
