@@ -35,6 +35,20 @@ void primitive_boxes(const int32_t* ids, int64_t n, const double* x0, const doub
   }, 1024);
 }
 
+// Boxes of every surface vertex, edge and triangle.
+struct SurfaceBoxes {
+  int64_t nv, ne, nt;
+  std::vector<double> v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
+  SurfaceBoxes(const Model& m, const double* x0, const double* x1, double inflation)
+      : nv(static_cast<int64_t>(m.surface_vertices.size())),
+        ne(static_cast<int64_t>(m.surface_edges.size() / 2)),
+        nt(static_cast<int64_t>(m.surface_triangles.size() / 3)) {
+    primitive_boxes<1>(m.surface_vertices.data(), nv, x0, x1, inflation, v_lo, v_hi);
+    primitive_boxes<2>(m.surface_edges.data(), ne, x0, x1, inflation, e_lo, e_hi);
+    primitive_boxes<3>(m.surface_triangles.data(), nt, x0, x1, inflation, t_lo, t_hi);
+  }
+};
+
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 
 // The filters of candidates.hpp, shared by the BVH and the brute-force paths.
@@ -79,21 +93,15 @@ void filter(std::vector<IndexPair>& pairs, Keep&& keep) {
 
 void find_contact_candidates(const Model& m, const double* x0, const double* x1, double inflation,
                              ContactCandidates& out) {
-  const int64_t nv = static_cast<int64_t>(m.surface_vertices.size());
-  const int64_t ne = static_cast<int64_t>(m.surface_edges.size() / 2);
-  const int64_t nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
-  std::vector<double> v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
-  primitive_boxes<1>(m.surface_vertices.data(), nv, x0, x1, inflation, v_lo, v_hi);
-  primitive_boxes<2>(m.surface_edges.data(), ne, x0, x1, inflation, e_lo, e_hi);
-  primitive_boxes<3>(m.surface_triangles.data(), nt, x0, x1, inflation, t_lo, t_hi);
+  const SurfaceBoxes b(m, x0, x1, inflation);
 
-  out.vertex_triangle = overlapping_pairs(v_lo.data(), v_hi.data(), static_cast<int32_t>(nv),
-                                          t_lo.data(), t_hi.data(), static_cast<int32_t>(nt));
+  out.vertex_triangle = overlapping_pairs(b.v_lo.data(), b.v_hi.data(), static_cast<int32_t>(b.nv),
+                                          b.t_lo.data(), b.t_hi.data(), static_cast<int32_t>(b.nt));
   // Surface vertex index -> vertex id keeps the order: surface_vertices is sorted.
   for (IndexPair& p : out.vertex_triangle) p.first = m.surface_vertices[p.first];
   filter(out.vertex_triangle, [&](int32_t v, int32_t t) { return keep_vertex_triangle(m, v, t); });
 
-  out.edge_edge = self_overlapping_pairs(e_lo.data(), e_hi.data(), static_cast<int32_t>(ne));
+  out.edge_edge = self_overlapping_pairs(b.e_lo.data(), b.e_hi.data(), static_cast<int32_t>(b.ne));
   filter(out.edge_edge, [&](int32_t a, int32_t b) { return keep_edge_edge(m, a, b); });
 
   find_vertex_plane(m, x0, x1, inflation, out.vertex_plane);
@@ -101,24 +109,18 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
 
 void find_contact_candidates_brute_force(const Model& m, const double* x0, const double* x1,
                                          double inflation, ContactCandidates& out) {
-  const int64_t nv = static_cast<int64_t>(m.surface_vertices.size());
-  const int64_t ne = static_cast<int64_t>(m.surface_edges.size() / 2);
-  const int64_t nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
-  std::vector<double> v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
-  primitive_boxes<1>(m.surface_vertices.data(), nv, x0, x1, inflation, v_lo, v_hi);
-  primitive_boxes<2>(m.surface_edges.data(), ne, x0, x1, inflation, e_lo, e_hi);
-  primitive_boxes<3>(m.surface_triangles.data(), nt, x0, x1, inflation, t_lo, t_hi);
+  const SurfaceBoxes b(m, x0, x1, inflation);
   out.clear();
-  for (int64_t i = 0; i < nv; ++i)
-    for (int64_t t = 0; t < nt; ++t)
-      if (boxes_overlap(v_lo.data(), v_hi.data(), i, t_lo.data(), t_hi.data(), t) &&
+  for (int64_t i = 0; i < b.nv; ++i)
+    for (int64_t t = 0; t < b.nt; ++t)
+      if (boxes_overlap(b.v_lo.data(), b.v_hi.data(), i, b.t_lo.data(), b.t_hi.data(), t) &&
           keep_vertex_triangle(m, m.surface_vertices[i], static_cast<int32_t>(t)))
         out.vertex_triangle.emplace_back(m.surface_vertices[i], static_cast<int32_t>(t));
-  for (int64_t a = 0; a < ne; ++a)
-    for (int64_t b = a + 1; b < ne; ++b)
-      if (boxes_overlap(e_lo.data(), e_hi.data(), a, e_lo.data(), e_hi.data(), b) &&
-          keep_edge_edge(m, static_cast<int32_t>(a), static_cast<int32_t>(b)))
-        out.edge_edge.emplace_back(static_cast<int32_t>(a), static_cast<int32_t>(b));
+  for (int64_t e = 0; e < b.ne; ++e)
+    for (int64_t f = e + 1; f < b.ne; ++f)
+      if (boxes_overlap(b.e_lo.data(), b.e_hi.data(), e, b.e_lo.data(), b.e_hi.data(), f) &&
+          keep_edge_edge(m, static_cast<int32_t>(e), static_cast<int32_t>(f)))
+        out.edge_edge.emplace_back(static_cast<int32_t>(e), static_cast<int32_t>(f));
   find_vertex_plane(m, x0, x1, inflation, out.vertex_plane);
 }
 

@@ -35,16 +35,6 @@ std::vector<double> perturbed(const Model& model, double amount, unsigned seed) 
   return x;
 }
 
-Eigen::MatrixXd dense_from_pattern(const HessianPattern& p, const std::vector<double>& values) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(p.num_dofs, p.num_dofs);
-  for (int64_t c = 0; c < p.num_dofs; ++c)
-    for (int64_t k = p.col_ptr[c]; k < p.col_ptr[c + 1]; ++k) {
-      H(p.row_idx[k], c) = values[k];
-      H(c, p.row_idx[k]) = values[k];
-    }
-  return H;
-}
-
 }  // namespace
 
 TEST_CASE("sparse Hessian equals the dense sum of projected element Hessians") {
@@ -73,7 +63,7 @@ TEST_CASE("sparse Hessian equals the dense sum of projected element Hessians") {
           dense.block<3, 3>(3 * model.tets[4 * t + a], 3 * model.tets[4 * t + b]) += H.block<3, 3>(3 * a, 3 * b);
       }
     }
-    const Eigen::MatrixXd sparse = dense_from_pattern(assembly.pattern(), values);
+    const Eigen::MatrixXd sparse = test::dense_from(assembly.pattern(), values);
     CHECK((sparse - dense).norm() <= 1e-10 * dense.norm());
     CHECK((Eigen::VectorXd::Map(grad.data(), grad.size()) - dense_grad).norm() <= 1e-10 * dense_grad.norm());
     // Every entry of the dense matrix that is structurally non-zero is in the pattern.

@@ -3,7 +3,10 @@
 #pragma once
 
 #include "engine/run.hpp"
+#include "engine/solver/hessian_pattern.hpp"
 #include "engine/scene/scene.hpp"
+
+#include <Eigen/Core>
 
 #include <cstdio>
 #include <filesystem>
@@ -64,6 +67,17 @@ inline std::vector<std::string> read_lines(const std::filesystem::path& path) {
 // The path of a shipped scene.
 inline std::filesystem::path scene_path(const std::string& name) {
   return std::filesystem::path(NEXDYN_SOURCE_DIR) / "scenes" / name;
+}
+
+// The symmetric matrix stored as an upper-triangular CSC pattern with these values, dense.
+inline Eigen::MatrixXd dense_from(const CscPattern& p, const std::vector<double>& values) {
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(p.num_dofs, p.num_dofs);
+  for (int64_t c = 0; c < p.num_dofs; ++c)
+    for (int64_t k = p.col_ptr[c]; k < p.col_ptr[c + 1]; ++k) {
+      H(p.row_idx[k], c) = values[k];
+      H(c, p.row_idx[k]) = values[k];
+    }
+  return H;
 }
 
 }  // namespace nexdyn::test

@@ -44,16 +44,6 @@ std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsi
   return x;
 }
 
-Eigen::MatrixXd dense_from(const CscPattern& p, const std::vector<double>& values) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(p.num_dofs, p.num_dofs);
-  for (int64_t c = 0; c < p.num_dofs; ++c)
-    for (int64_t k = p.col_ptr[c]; k < p.col_ptr[c + 1]; ++k) {
-      H(p.row_idx[k], c) = values[k];
-      H(c, p.row_idx[k]) = values[k];
-    }
-  return H;
-}
-
 constexpr double kDhat = 0.05;
 
 }  // namespace
@@ -141,7 +131,7 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     // Reference: s * elastic + mass diagonal + every contact slab added densely.
     std::vector<double> egrad(model.num_dofs()), evalues(elastic.pattern().nnz());
     elastic.gradient_hessian(x.data(), egrad.data(), evalues.data());
-    Eigen::MatrixXd H = scale * dense_from(elastic.pattern(), evalues);
+    Eigen::MatrixXd H = scale * test::dense_from(elastic.pattern(), evalues);
     for (int32_t v = 0; v < model.num_vertices; ++v)
       for (int d = 0; d < 3; ++d) H(3 * v + d, 3 * v + d) += model.mass[v];
     const std::vector<int32_t>& st = contact.stencils();
@@ -156,7 +146,7 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
         }
     *reference = H;
     CHECK(potential.pattern().nnz() > elastic.pattern().nnz());  // contact added blocks
-    const Eigen::MatrixXd assembled = dense_from(potential.pattern(), values);
+    const Eigen::MatrixXd assembled = test::dense_from(potential.pattern(), values);
     CHECK((assembled - H).cwiseAbs().maxCoeff() <= 1e-12 * H.cwiseAbs().maxCoeff());
     // Every contact slab is symmetric PSD after projection.
     for (int64_t k = 0; k < contact.num_active(); ++k) {
