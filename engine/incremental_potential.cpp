@@ -137,7 +137,8 @@ void IncrementalPotential::remove_contact_acceleration(const double* x, std::vec
   if (!contact_) return;
   // grad of s_c kappa B; update_implicit divided it by s (with a minus: a force).
   contact_->assemble(x, contact_scale_ * kappa_, false);
-  std::vector<double> grad(model_.num_dofs(), 0.0);
+  std::vector<double>& grad = contact_gradient_;
+  grad.assign(model_.num_dofs(), 0.0);
   contact_->add_gradient(grad.data());
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;

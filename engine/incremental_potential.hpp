@@ -78,6 +78,7 @@ class IncrementalPotential {
   BarrierPotential* contact_ = nullptr;
   std::unique_ptr<ContactPattern> contact_pattern_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
+  std::vector<double> contact_gradient_;  // (3n) workspace of remove_contact_acceleration
   const std::vector<double>* x_tilde_ = nullptr;
   double scale_ = 1.0;
   double contact_scale_ = 1.0;

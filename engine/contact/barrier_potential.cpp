@@ -287,7 +287,8 @@ void BarrierPotential::assemble(const double* x, double weight, bool with_hessia
   const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
   const int64_t nvp = static_cast<int64_t>(c.vertex_plane.size());
-  std::vector<uint8_t> active(nvt + nee + nvp);
+  std::vector<uint8_t>& active = candidate_active_;
+  active.resize(nvt + nee + nvp);
   parallel_for(nvt + nee + nvp, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       PairEval e;

@@ -77,6 +77,7 @@ class BarrierPotential {
   double dhat_ = 0.0, dhat2_ = 0.0;
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
+  std::vector<uint8_t> candidate_active_;  // (candidates) workspace of assemble()
   // Active set of the last assemble().
   std::vector<uint8_t> active_kind_;     // 0 vertex-triangle, 1 edge-edge, 2 vertex-plane
   std::vector<int32_t> active_index_;    // index into the candidate list of that kind
