@@ -1,7 +1,7 @@
-// The contact part of the Newton system against independent references: candidates against the
-// O(n^2) broad phase, the gradient of the incremental potential with barrier against finite
-// differences of its energy, the merged sparse Hessian against a dense sum of the element and
-// contact blocks, and bitwise equality for 1 and 2 threads.
+// The contact part of the Newton system against independent references: the gradient of the
+// incremental potential with barrier against finite differences of its energy, the merged sparse
+// Hessian against a dense sum of the element and contact blocks, and bitwise equality for 1 and
+// 2 threads. (Candidates against the brute force: test_candidates.cpp.)
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/candidates.hpp"
 #include "engine/elastic_assembly.hpp"
@@ -47,34 +47,6 @@ std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsi
 constexpr double kDhat = 0.05;
 
 }  // namespace
-
-TEST_CASE("contact candidates equal the brute force, static and swept") {
-  const Scene scene = two_boxes();
-  const Model& model = scene.model;
-  const std::vector<double> x0 = perturbed(model.rest_positions, 1e-3, 1);
-  std::vector<double> x1 = perturbed(x0, 0.05, 2);
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.vertex_body[v] == 1) x1[3 * v + 1] -= 0.1;  // the upper box sinks into the lower
-  for (const double* end : {static_cast<const double*>(nullptr), static_cast<const double*>(x1.data())}) {
-    for (double inflation : {0.0, 0.5 * kDhat, 0.2}) {
-      CAPTURE(inflation);
-      ContactCandidates fast, slow;
-      find_contact_candidates(model, x0.data(), end, inflation, fast);
-      find_contact_candidates_brute_force(model, x0.data(), end, inflation, slow);
-      CHECK(fast.vertex_triangle == slow.vertex_triangle);
-      CHECK(fast.edge_edge == slow.edge_edge);
-      CHECK(fast.vertex_plane == slow.vertex_plane);
-      if (inflation > 0.0) {
-        CHECK(!fast.vertex_triangle.empty());
-        CHECK(!fast.edge_edge.empty());
-        CHECK(!fast.vertex_plane.empty());
-      }
-      // The filters: no vertex against its own triangle, no edges sharing a vertex.
-      for (const IndexPair& p : fast.vertex_triangle)
-        for (int c = 0; c < 3; ++c) CHECK(model.surface_triangles[3 * p.second + c] != p.first);
-    }
-  }
-}
 
 TEST_CASE("incremental potential gradient with contact matches finite differences") {
   const Scene scene = two_boxes();

@@ -1,0 +1,1 @@
+// Contact candidates against the O(n^2) reference (placeholder, filled in below).
