@@ -1,8 +1,9 @@
 // Contact stages of a Newton iteration on grids of unit cubes (issue 3, "contact" measurements):
 //   broad phase     find_contact_candidates at x with inflation dhat / 2 (all pairs within dhat)
-//   barrier         gradient (assemble + add_gradient) and PSD-projected Hessian (assemble +
-//                   ContactPattern::update + merge into the Newton matrix) over the pairs closer
-//                   than dhat, with the candidate list found once outside the timed loop
+//   barrier         active set (candidates closer than dhat, merged by closest feature), then
+//                   over that set the gradient (derivatives + add_gradient) and the
+//                   PSD-projected Hessian (derivatives + ContactPattern::update + merge into the
+//                   Newton matrix), with the candidate list found once outside the timed loop
 //   max step        BarrierPotential::max_step: swept broad phase + CCD of a shearing, sinking
 //                   cube stack; x + alpha p is checked intersection-free outside the timing
 //
@@ -10,7 +11,8 @@
 // 0.005 apart on every side (spacing 1.005), dhat = 0.01, built by writing a scene JSON and
 // calling load_scene, as a user would. The argument is the number of threads (tbb::global_control).
 // Counters: surface primitives (sum over cubes of surface vertices + edges + triangles, checked
-// against the closed form k^3 (36 n^2 + 2)), candidate and active pair counts, DOFs.
+// against the closed form k^3 (36 n^2 + 2)), candidate and active pair counts, stencils after
+// merging equal closest features (by size: point-point, point-edge, 4-point), DOFs.
 // The narrow-phase CCD query rate is measured by bench_ccd.
 //
 //   build/bench/bench_contact --benchmark_min_time=0.5
@@ -112,9 +114,11 @@ void broad_phase(benchmark::State& state, int k, int n) {
 void BM_BroadPhase_125cubes_5cells(benchmark::State& state) { broad_phase(state, 5, 5); }
 void BM_BroadPhase_1000cubes_5cells(benchmark::State& state) { broad_phase(state, 10, 5); }
 
-// ---- 2. barrier gradient and Hessian ----------------------------------------------------------
+// ---- 2. barrier active set, gradient and Hessian ----------------------------------------------
 
-// 125 cubes of 10^3 cells at rest: every face-to-face pair across a 0.005 gap is active.
+// 125 cubes of 10^3 cells at rest: every face-to-face pair across a 0.005 gap is active. The
+// candidate list is found once; the gradient and Hessian benchmarks time the derivatives over an
+// active set built once (as a Newton iteration does after BM_BarrierActiveSet).
 struct BarrierProblem {
   CubeGrid& g;
   std::unique_ptr<ElasticAssembly> elastic;
@@ -135,7 +139,7 @@ struct BarrierProblem {
     pattern = std::make_unique<ContactPattern>(elastic->pattern());
     barrier->assemble(x.data(), 1.0, true);
     const auto t0 = std::chrono::steady_clock::now();
-    pattern->update(barrier->stencils(), true);
+    pattern->update(barrier->stencils(), barrier->slab_begin(), true);
     first_update_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     values.resize(pattern->pattern().nnz());
   }
@@ -148,32 +152,55 @@ BarrierProblem& barrier_problem() {
 
 void barrier_counters(benchmark::State& state, BarrierProblem& p) {
   surface_counters(state, p.g);
-  state.counters["candidates"] = double(p.barrier->candidates().size());
-  state.counters["contacts"] = double(p.barrier->num_active());
+  const BarrierPotential& b = *p.barrier;
+  state.counters["candidates"] = double(b.candidates().size());
+  state.counters["active_pairs"] = double(b.num_active_pairs());
+  state.counters["stencils"] = double(b.num_stencils());
+  // Stencils by size: 2 point-point, 3 point-edge, 4 point-triangle / edge-edge (slab 9 n^2).
+  int64_t by_size[5] = {0, 0, 0, 0, 0};
+  for (int64_t s = 0; s < b.num_stencils(); ++s) {
+    const int64_t slab = b.slab_begin()[s + 1] - b.slab_begin()[s];
+    ++by_size[slab == 9 ? 1 : slab == 36 ? 2 : slab == 81 ? 3 : 4];
+  }
+  state.counters["stencils_pp"] = double(by_size[2]);
+  state.counters["stencils_pe"] = double(by_size[3]);
+  state.counters["stencils_4"] = double(by_size[4]);
   state.counters["nnz"] = double(p.pattern->pattern().nnz());
   state.counters["first_update_ms"] = p.first_update_ms;
 }
 
+// Classify the candidates at x, keep those closer than dhat, merge equal closest features.
+void BM_BarrierActiveSet_125cubes_10cells(benchmark::State& state) {
+  BarrierProblem& p = barrier_problem();
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
+  for (auto _ : state) {
+    p.barrier->build_active_set(p.x.data());
+    benchmark::DoNotOptimize(p.barrier->stencils().data());
+  }
+  barrier_counters(state, p);
+}
+
+// Gradient over the active set: derivatives without Hessians, added into the global gradient.
 void BM_BarrierGradient_125cubes_10cells(benchmark::State& state) {
   BarrierProblem& p = barrier_problem();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
   for (auto _ : state) {
     std::fill(p.grad.begin(), p.grad.end(), 0.0);
-    p.barrier->assemble(p.x.data(), 1.0, false);
+    p.barrier->compute_derivatives(p.x.data(), 1.0, false);
     p.barrier->add_gradient(p.grad.data());
     benchmark::DoNotOptimize(p.grad.data());
   }
   barrier_counters(state, p);
 }
 
-// What a Newton iteration does for contact's Hessian: active set with projected slabs, pattern
-// check + gather table, merge into the elastic values.
+// What a Newton iteration does for contact's Hessian over a built active set: projected slabs,
+// pattern check + gather table, merge into the elastic values.
 void BM_BarrierHessian_125cubes_10cells(benchmark::State& state) {
   BarrierProblem& p = barrier_problem();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
   for (auto _ : state) {
-    p.barrier->assemble(p.x.data(), 1.0, true);
-    p.pattern->update(p.barrier->stencils(), false);
+    p.barrier->compute_derivatives(p.x.data(), 1.0, true);
+    p.pattern->update(p.barrier->stencils(), p.barrier->slab_begin(), false);
     p.pattern->assemble(p.elastic_values.data(), p.barrier->local_hessians().data(), p.values.data());
     benchmark::DoNotOptimize(p.values.data());
   }
@@ -182,11 +209,11 @@ void BM_BarrierHessian_125cubes_10cells(benchmark::State& state) {
 
 // The three parts of BM_BarrierHessian, timed alone (the inputs of each are left as the full
 // sequence leaves them).
-void BM_BarrierHessian_part_assemble(benchmark::State& state) {
+void BM_BarrierHessian_part_derivatives(benchmark::State& state) {
   BarrierProblem& p = barrier_problem();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
   for (auto _ : state) {
-    p.barrier->assemble(p.x.data(), 1.0, true);
+    p.barrier->compute_derivatives(p.x.data(), 1.0, true);
     benchmark::DoNotOptimize(p.barrier->local_hessians().data());
   }
   barrier_counters(state, p);
@@ -195,16 +222,17 @@ void BM_BarrierHessian_part_assemble(benchmark::State& state) {
 void BM_BarrierHessian_part_pattern_update(benchmark::State& state) {
   BarrierProblem& p = barrier_problem();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
-  p.barrier->assemble(p.x.data(), 1.0, true);
-  for (auto _ : state) benchmark::DoNotOptimize(p.pattern->update(p.barrier->stencils(), false));
+  p.barrier->compute_derivatives(p.x.data(), 1.0, true);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(p.pattern->update(p.barrier->stencils(), p.barrier->slab_begin(), false));
   barrier_counters(state, p);
 }
 
 void BM_BarrierHessian_part_merge(benchmark::State& state) {
   BarrierProblem& p = barrier_problem();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
-  p.barrier->assemble(p.x.data(), 1.0, true);
-  p.pattern->update(p.barrier->stencils(), false);
+  p.barrier->compute_derivatives(p.x.data(), 1.0, true);
+  p.pattern->update(p.barrier->stencils(), p.barrier->slab_begin(), false);
   for (auto _ : state) {
     p.pattern->assemble(p.elastic_values.data(), p.barrier->local_hessians().data(), p.values.data());
     benchmark::DoNotOptimize(p.values.data());
@@ -279,9 +307,10 @@ void BM_MaxStep_27cubes_3cells(benchmark::State& state) {
 
 NEXDYN_CONTACT_BENCH(BM_BroadPhase_125cubes_5cells);
 NEXDYN_CONTACT_BENCH(BM_BroadPhase_1000cubes_5cells);
+NEXDYN_CONTACT_BENCH(BM_BarrierActiveSet_125cubes_10cells);
 NEXDYN_CONTACT_BENCH(BM_BarrierGradient_125cubes_10cells);
 NEXDYN_CONTACT_BENCH(BM_BarrierHessian_125cubes_10cells);
-NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_assemble);
+NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_derivatives);
 NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_pattern_update);
 NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_merge);
 NEXDYN_CONTACT_BENCH(BM_MaxStep_27cubes_3cells);

@@ -100,7 +100,7 @@ void IncrementalPotential::begin_solve(const double* x) {
 void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   if (!contact_) return;
   contact_->assemble(x, contact_scale_ * kappa_, true);
-  contact_pattern_->update(contact_->stencils(), first_iteration);
+  contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
 }
 
 void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values) {

@@ -9,6 +9,8 @@
 #include "kernels/distance/point_triangle_distance.hpp"
 #include "kernels/projection/psd_projection.hpp"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -24,112 +26,68 @@ constexpr int64_t kPairGrain = 256;
 // distance): far enough from 0 that the barrier stays finite, close enough not to stall.
 constexpr double kCcdGapFraction = 0.1;
 
-enum PairKind : uint8_t { kVertexTriangle = 0, kEdgeEdge = 1, kVertexPlane = 2 };
-
 Eigen::Vector3d point(const double* x, int32_t v) { return Eigen::Vector3d::Map(x + 3 * int64_t{v}); }
 
-// The closest features of a pair as a reduced stencil: the squared distance is a point-point
-// (n = 2), point-line (n = 3), point-plane or line-line (n = 4) distance of the stencil points
-// idx[0..n). Computing and projecting at that size is exact and cheaper than at 12x12.
+// The closest feature of a pair within its 4-point stencil: the squared distance is a
+// point-point (n = 2), point-line (n = 3), point-plane or line-line (n = 4) distance of the
+// stencil points idx[0..n).
 struct Feature {
-  enum Kind : uint8_t { point_point, point_line, point_plane, line_line } kind;
   int n;
   int idx[4];
 };
 
 Feature feature_of(PointTriangleCase c) {
   switch (c) {
-    case PointTriangleCase::p_t0: return {Feature::point_point, 2, {0, 1}};
-    case PointTriangleCase::p_t1: return {Feature::point_point, 2, {0, 2}};
-    case PointTriangleCase::p_t2: return {Feature::point_point, 2, {0, 3}};
-    case PointTriangleCase::p_e0: return {Feature::point_line, 3, {0, 1, 2}};
-    case PointTriangleCase::p_e1: return {Feature::point_line, 3, {0, 2, 3}};
-    case PointTriangleCase::p_e2: return {Feature::point_line, 3, {0, 3, 1}};
+    case PointTriangleCase::p_t0: return {2, {0, 1}};
+    case PointTriangleCase::p_t1: return {2, {0, 2}};
+    case PointTriangleCase::p_t2: return {2, {0, 3}};
+    case PointTriangleCase::p_e0: return {3, {0, 1, 2}};
+    case PointTriangleCase::p_e1: return {3, {0, 2, 3}};
+    case PointTriangleCase::p_e2: return {3, {0, 3, 1}};
     case PointTriangleCase::p_t: break;
   }
-  return {Feature::point_plane, 4, {0, 1, 2, 3}};
+  return {4, {0, 1, 2, 3}};
 }
 
 Feature feature_of(EdgeEdgeCase c) {
   switch (c) {
-    case EdgeEdgeCase::ea0_eb0: return {Feature::point_point, 2, {0, 2}};
-    case EdgeEdgeCase::ea0_eb1: return {Feature::point_point, 2, {0, 3}};
-    case EdgeEdgeCase::ea1_eb0: return {Feature::point_point, 2, {1, 2}};
-    case EdgeEdgeCase::ea1_eb1: return {Feature::point_point, 2, {1, 3}};
-    case EdgeEdgeCase::ea_eb0: return {Feature::point_line, 3, {2, 0, 1}};
-    case EdgeEdgeCase::ea_eb1: return {Feature::point_line, 3, {3, 0, 1}};
-    case EdgeEdgeCase::ea0_eb: return {Feature::point_line, 3, {0, 2, 3}};
-    case EdgeEdgeCase::ea1_eb: return {Feature::point_line, 3, {1, 2, 3}};
+    case EdgeEdgeCase::ea0_eb0: return {2, {0, 2}};
+    case EdgeEdgeCase::ea0_eb1: return {2, {0, 3}};
+    case EdgeEdgeCase::ea1_eb0: return {2, {1, 2}};
+    case EdgeEdgeCase::ea1_eb1: return {2, {1, 3}};
+    case EdgeEdgeCase::ea_eb0: return {3, {2, 0, 1}};
+    case EdgeEdgeCase::ea_eb1: return {3, {3, 0, 1}};
+    case EdgeEdgeCase::ea0_eb: return {3, {0, 2, 3}};
+    case EdgeEdgeCase::ea1_eb: return {3, {1, 2, 3}};
     case EdgeEdgeCase::ea_eb: break;
   }
-  return {Feature::line_line, 4, {0, 1, 2, 3}};
+  return {4, {0, 1, 2, 3}};
 }
 
-// Gradient and Hessian of the squared distance of a reduced stencil with N points.
-template <int N>
-void feature_derivatives(const Feature& f, const Eigen::Vector3d (&X)[4],
-                         Eigen::Matrix<double, 3 * N, 1>& g, Eigen::Matrix<double, 3 * N, 3 * N>& H) {
+// Gradient and (when H is given) Hessian of the squared distance of an edge-edge pair's closest
+// feature, placed into the pair's 12 DOFs (for the product rule of a mollified pair).
+void edge_edge_full_derivatives(const Feature& f, const Eigen::Vector3d (&X)[4], Vector12d& g,
+                                Matrix12d* H) {
+  g.setZero();
+  if (H) H->setZero();
+  auto scatter = [&](const auto& gr, auto&& hessian, int n) {
+    for (int i = 0; i < n; ++i) g.segment<3>(3 * f.idx[i]) = gr.template segment<3>(3 * i);
+    if (!H) return;
+    const auto hr = hessian();
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        H->block<3, 3>(3 * f.idx[i], 3 * f.idx[j]) = hr.template block<3, 3>(3 * i, 3 * j);
+  };
   const Eigen::Vector3d& a = X[f.idx[0]];
   const Eigen::Vector3d& b = X[f.idx[1]];
-  if constexpr (N == 2) {
-    g = point_point_distance_gradient(a, b);
-    H = point_point_distance_hessian(a, b);
-  } else if constexpr (N == 3) {
-    g = point_line_distance_gradient(a, b, X[f.idx[2]]);
-    H = point_line_distance_hessian(a, b, X[f.idx[2]]);
-  } else if (f.kind == Feature::point_plane) {
-    g = point_plane_distance_gradient(a, b, X[f.idx[2]], X[f.idx[3]]);
-    H = point_plane_distance_hessian(a, b, X[f.idx[2]], X[f.idx[3]]);
-  } else {
-    g = line_line_distance_gradient(a, b, X[f.idx[2]], X[f.idx[3]]);
-    H = line_line_distance_hessian(a, b, X[f.idx[2]], X[f.idx[3]]);
-  }
-}
-
-// Writes the derivatives of w b(d) of an unmollified pair into its 12-gradient and 12x12 slab:
-//   grad = w b' grad d,   H = project(w (b'' grad d grad d^T + b' hess d)).
-template <int N>
-void unmollified_pair(const Feature& f, const Eigen::Vector3d (&X)[4], double d, double dhat2,
-                      double w, bool with_hessian, double* grad, double* hess) {
-  Eigen::Matrix<double, 3 * N, 1> g;
-  Eigen::Matrix<double, 3 * N, 3 * N> H;
-  feature_derivatives<N>(f, X, g, H);
-  const double b1 = w * barrier_first_derivative(d, dhat2);
-  for (int i = 0; i < N; ++i)
-    for (int r = 0; r < 3; ++r) grad[3 * f.idx[i] + r] = b1 * g[3 * i + r];
-  if (!with_hessian) return;
-  const double b2 = w * barrier_second_derivative(d, dhat2);
-  H = b2 * g * g.transpose() + b1 * H;
-  project_psd<3 * N>(H);
-  for (int j = 0; j < N; ++j)
-    for (int c = 0; c < 3; ++c)
-      for (int i = 0; i < N; ++i)
-        for (int r = 0; r < 3; ++r)
-          hess[(3 * f.idx[j] + c) * 12 + 3 * f.idx[i] + r] = H(3 * i + r, 3 * j + c);
-}
-
-// Full 12-DOF gradient and Hessian of the squared distance of an edge-edge pair.
-void edge_edge_full_derivatives(const Feature& f, const Eigen::Vector3d (&X)[4], Vector12d& g,
-                                Matrix12d& H) {
-  g.setZero();
-  H.setZero();
-  auto scatter = [&](const auto& gr, const auto& hr, int n) {
-    for (int i = 0; i < n; ++i) {
-      g.segment<3>(3 * f.idx[i]) = gr.template segment<3>(3 * i);
-      for (int j = 0; j < n; ++j)
-        H.block<3, 3>(3 * f.idx[i], 3 * f.idx[j]) = hr.template block<3, 3>(3 * i, 3 * j);
-    }
-  };
   if (f.n == 2) {
-    Vector6d gr; Matrix6d hr;
-    feature_derivatives<2>(f, X, gr, hr);
-    scatter(gr, hr, 2);
+    scatter(point_point_distance_gradient(a, b), [&] { return point_point_distance_hessian(a, b); }, 2);
   } else if (f.n == 3) {
-    Vector9d gr; Matrix9d hr;
-    feature_derivatives<3>(f, X, gr, hr);
-    scatter(gr, hr, 3);
+    const Eigen::Vector3d& c = X[f.idx[2]];
+    scatter(point_line_distance_gradient(a, b, c), [&] { return point_line_distance_hessian(a, b, c); }, 3);
   } else {
-    feature_derivatives<4>(f, X, g, H);
+    g = line_line_distance_gradient(X[0], X[1], X[2], X[3]);
+    if (H) *H = line_line_distance_hessian(X[0], X[1], X[2], X[3]);
   }
 }
 
@@ -279,121 +237,430 @@ BarrierPotential::Summary BarrierPotential::summarize(const double* x) const {
   return summary;
 }
 
-// ---- derivatives ----------------------------------------------------------------------------
+// ---- active set -------------------------------------------------------------------------------
 
-void BarrierPotential::assemble(const double* x, double weight, bool with_hessian) {
-  // Pass 1: which candidates are active (parallel, one flag each); pass 2: compact in order.
+namespace {
+
+// Candidates per chunk of the active-set passes: fixed, so the output order does not depend on
+// the number of threads.
+constexpr int64_t kCandidateChunk = 4096;
+
+// candidate_code_: 0 for an inactive pair, else 1 + its closest-feature case (PointTriangleCase
+// or EdgeEdgeCase), plus kMollifiedCode for an edge-edge pair inside the mollifier's band.
+constexpr uint8_t kMollifiedCode = 32;
+
+int32_t lower(int32_t a, int32_t b) { return a < b ? a : b; }
+int32_t upper(int32_t a, int32_t b) { return a < b ? b : a; }
+
+}  // namespace
+
+void BarrierPotential::build_active_set(const double* x) {
   const ContactCandidates& c = candidates_;
   const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
-  const int64_t nvp = static_cast<int64_t>(c.vertex_plane.size());
-  std::vector<uint8_t>& active = candidate_active_;
-  active.resize(nvt + nee + nvp);
-  parallel_for(nvt + nee + nvp, [&](int64_t begin, int64_t end) {
-    for (int64_t i = begin; i < end; ++i) {
-      PairEval e;
-      if (i < nvt) e = eval_vertex_triangle(model_, x, c.vertex_triangle[i], dhat2_);
-      else if (i < nvt + nee) e = eval_edge_edge(model_, x, c.edge_edge[i - nvt], dhat2_);
-      else e = eval_vertex_plane(model_, x, c.vertex_plane[i - nvt - nee], dhat2_);
-      active[i] = e.d < dhat2_;
+  const int64_t num = c.size();
+  const int64_t chunks = (num + kCandidateChunk - 1) / kCandidateChunk;
+  const int32_t* tris = model_.surface_triangles.data();
+  const int32_t* edges = model_.surface_edges.data();
+
+  // The vertex ids of candidate i in stencil order (p, t0, t1, t2 or ea0, ea1, eb0, eb1).
+  auto candidate_vertices = [&](int64_t i, int32_t (&s)[4]) {
+    if (i < nvt) {
+      const IndexPair& pair = c.vertex_triangle[i];
+      const int32_t* t = &tris[3 * int64_t{pair.second}];
+      s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
+    } else {
+      const IndexPair& pair = c.edge_edge[i - nvt];
+      const int32_t* ea = &edges[2 * int64_t{pair.first}];
+      const int32_t* eb = &edges[2 * int64_t{pair.second}];
+      s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
+    }
+  };
+  // The closest feature of an active vertex-triangle or edge-edge candidate, from its code.
+  auto feature_of_code = [&](int64_t i, uint8_t code) {
+    return i < nvt ? feature_of(static_cast<PointTriangleCase>(code - 1))
+                   : feature_of(static_cast<EdgeEdgeCase>((code & ~kMollifiedCode) - 1));
+  };
+  // Point-point and point-edge features of unmollified pairs are merged; the rest are unique.
+  auto mergeable = [&](int64_t i, uint8_t code) {
+    if (i >= nvt + nee || (code & kMollifiedCode)) return false;
+    return feature_of_code(i, code).n < 4;
+  };
+
+  // Pass 1: classify every candidate, count unique and mergeable active pairs per chunk.
+  candidate_code_.resize(num);
+  chunk_unique_begin_.assign(chunks + 1, 0);
+  chunk_feature_begin_.assign(chunks + 1, 0);
+  parallel_for(chunks, [&](int64_t cb, int64_t ce) {
+    for (int64_t k = cb; k < ce; ++k) {
+      int64_t unique = 0, mergeable_pairs = 0;
+      for (int64_t i = k * kCandidateChunk; i < std::min(num, (k + 1) * kCandidateChunk); ++i) {
+        uint8_t code = 0;
+        if (i < nvt + nee) {
+          int32_t s[4];
+          candidate_vertices(i, s);
+          const Eigen::Vector3d X0 = point(x, s[0]), X1 = point(x, s[1]);
+          const Eigen::Vector3d X2 = point(x, s[2]), X3 = point(x, s[3]);
+          if (i < nvt) {
+            const PointTriangleCase pc = point_triangle_case(X0, X1, X2, X3);
+            if (point_triangle_distance(X0, X1, X2, X3, pc) < dhat2_) code = 1 + static_cast<uint8_t>(pc);
+          } else {
+            const EdgeEdgeCase ec = edge_edge_case(X0, X1, X2, X3);
+            if (edge_edge_distance(X0, X1, X2, X3, ec) < dhat2_) {
+              code = 1 + static_cast<uint8_t>(ec);
+              const double eps_x = edge_edge_threshold(model_, &s[0], &s[2]);
+              if (edge_edge_cross_squarednorm(X0, X1, X2, X3) < eps_x) code |= kMollifiedCode;
+            }
+          }
+        } else {
+          if (eval_vertex_plane(model_, x, c.vertex_plane[i - nvt - nee], dhat2_).d < dhat2_) code = 1;
+        }
+        candidate_code_[i] = code;
+        if (code == 0) continue;
+        if (mergeable(i, code)) ++mergeable_pairs;
+        else ++unique;
+      }
+      chunk_unique_begin_[k + 1] = unique;
+      chunk_feature_begin_[k + 1] = mergeable_pairs;
+    }
+  }, 1);
+  for (int64_t k = 0; k < chunks; ++k) {
+    chunk_unique_begin_[k + 1] += chunk_unique_begin_[k];
+    chunk_feature_begin_[k + 1] += chunk_feature_begin_[k];
+  }
+  const int64_t num_unique = chunk_unique_begin_[chunks];
+  const int64_t num_features = chunk_feature_begin_[chunks];
+  num_active_pairs_ = num_unique + num_features;
+
+  // Pass 2: unique pairs become stencils, mergeable ones feature keys, both in candidate order.
+  kind_.resize(num_unique);
+  vertices_.resize(4 * num_unique);
+  multiplicity_.resize(num_unique);
+  features_.resize(num_features);
+  parallel_for(chunks, [&](int64_t cb, int64_t ce) {
+    for (int64_t k = cb; k < ce; ++k) {
+      int64_t unique = chunk_unique_begin_[k], feature = chunk_feature_begin_[k];
+      for (int64_t i = k * kCandidateChunk; i < std::min(num, (k + 1) * kCandidateChunk); ++i) {
+        const uint8_t code = candidate_code_[i];
+        if (code == 0) continue;
+        if (i >= nvt + nee) {
+          const IndexPair& pair = c.vertex_plane[i - nvt - nee];
+          kind_[unique] = StencilKind::vertex_plane;
+          int32_t* v = &vertices_[4 * unique];
+          v[0] = pair.first; v[1] = pair.second; v[2] = v[3] = -1;
+          multiplicity_[unique++] = 1;
+          continue;
+        }
+        int32_t s[4];
+        candidate_vertices(i, s);
+        if (mergeable(i, code)) {
+          const Feature f = feature_of_code(i, code);
+          const int32_t p = s[f.idx[0]], q = s[f.idx[1]];
+          features_[feature++] = f.n == 2 ? FeatureKey{lower(p, q), upper(p, q), -1}
+                                          : FeatureKey{p, lower(q, s[f.idx[2]]), upper(q, s[f.idx[2]])};
+          continue;
+        }
+        kind_[unique] = i < nvt ? StencilKind::point_triangle
+                                : ((code & kMollifiedCode) ? StencilKind::edge_edge_mollified
+                                                           : StencilKind::edge_edge);
+        std::copy(s, s + 4, &vertices_[4 * unique]);
+        multiplicity_[unique++] = 1;
+      }
+    }
+  }, 1);
+
+  // Merge equal features: bucket the keys by their first vertex (a stable counting sort, so the
+  // order is fixed), then sort each small bucket and count runs. vertex_feature_begin_ has
+  // nv + 2 entries: counting at a + 2 and filling through a + 1 leaves entry a at bucket a's start.
+  const int64_t nv = model_.num_vertices;
+  std::vector<int64_t>& bucket = vertex_feature_begin_;
+  bucket.assign(nv + 2, 0);
+  for (const FeatureKey& f : features_) ++bucket[f.a + 2];
+  for (int64_t v = 0; v < nv; ++v) bucket[v + 2] += bucket[v + 1];
+  features_by_vertex_.resize(num_features);
+  for (const FeatureKey& f : features_) features_by_vertex_[bucket[f.a + 1]++] = f;
+
+  auto before = [](const FeatureKey& l, const FeatureKey& r) { return l.b != r.b ? l.b < r.b : l.c < r.c; };
+  auto same = [](const FeatureKey& l, const FeatureKey& r) { return l.b == r.b && l.c == r.c; };
+  vertex_stencil_begin_.assign(nv + 1, 0);
+  parallel_for(nv, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      FeatureKey* first = features_by_vertex_.data() + bucket[v];
+      FeatureKey* last = features_by_vertex_.data() + bucket[v + 1];
+      std::sort(first, last, before);
+      int64_t runs = 0;
+      for (FeatureKey* f = first; f != last; ++f) runs += (f == first || !same(f[-1], *f));
+      vertex_stencil_begin_[v + 1] = runs;
     }
   }, 1024);
-  active_kind_.clear();
-  active_index_.clear();
-  for (int64_t i = 0; i < nvt + nee + nvp; ++i) {
-    if (!active[i]) continue;
-    const uint8_t kind = i < nvt ? kVertexTriangle : (i < nvt + nee ? kEdgeEdge : kVertexPlane);
-    active_kind_.push_back(kind);
-    active_index_.push_back(static_cast<int32_t>(kind == kVertexTriangle ? i : (kind == kEdgeEdge ? i - nvt : i - nvt - nee)));
-  }
-  const int64_t na = static_cast<int64_t>(active_kind_.size());
-  stencils_.resize(4 * na);
-  gradients_.assign(12 * na, 0.0);
-  if (with_hessian) hessians_.assign(144 * na, 0.0);
-
-  parallel_for(na, [&](int64_t begin, int64_t end) {
-    for (int64_t k = begin; k < end; ++k) {
-      int32_t* s = &stencils_[4 * k];
-      double* grad = &gradients_[12 * k];
-      double* hess = with_hessian ? &hessians_[144 * k] : nullptr;
-      const int32_t idx = active_index_[k];
-      if (active_kind_[k] == kVertexPlane) {
-        const IndexPair& pair = c.vertex_plane[idx];
-        const ObstaclePlane& plane = model_.obstacle_planes[pair.second];
-        s[0] = pair.first;
-        s[1] = s[2] = s[3] = -1;
-        const double h = (point(x, pair.first) - plane.point).dot(plane.normal);
-        const double d = h * h;
-        const double b1 = weight * barrier_first_derivative(d, dhat2_);
-        const Eigen::Vector3d g = 2.0 * h * plane.normal;
-        for (int r = 0; r < 3; ++r) grad[r] = b1 * g[r];
-        if (hess) {
-          // b'' g g^T + b' 2 n n^T = (4 h^2 b'' + 2 b') n n^T: rank one, projected by its sign.
-          const double b2 = weight * barrier_second_derivative(d, dhat2_);
-          const double lambda = std::max(0.0, 4.0 * d * b2 + 2.0 * b1);
-          for (int j = 0; j < 3; ++j)
-            for (int i = 0; i < 3; ++i) hess[12 * j + i] = lambda * plane.normal[i] * plane.normal[j];
+  vertex_stencil_begin_[0] = num_unique;
+  for (int64_t v = 0; v < nv; ++v) vertex_stencil_begin_[v + 1] += vertex_stencil_begin_[v];
+  const int64_t num_stencils = vertex_stencil_begin_[nv];
+  kind_.resize(num_stencils);
+  vertices_.resize(4 * num_stencils);
+  multiplicity_.resize(num_stencils);
+  parallel_for(nv, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      int64_t out = vertex_stencil_begin_[v] - 1;
+      for (int64_t k = bucket[v]; k < bucket[v + 1]; ++k) {
+        const FeatureKey& f = features_by_vertex_[k];
+        if (k > bucket[v] && same(features_by_vertex_[k - 1], f)) {
+          ++multiplicity_[out];
+          continue;
         }
-        continue;
+        ++out;
+        kind_[out] = f.c < 0 ? StencilKind::point_point : StencilKind::point_edge;
+        int32_t* s = &vertices_[4 * out];
+        s[0] = f.a; s[1] = f.b; s[2] = f.c; s[3] = -1;
+        multiplicity_[out] = 1;
       }
-      Eigen::Vector3d X[4];
-      if (active_kind_[k] == kVertexTriangle) {
-        const IndexPair& pair = c.vertex_triangle[idx];
-        const int32_t* t = &model_.surface_triangles[3 * int64_t{pair.second}];
-        s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
-        for (int i = 0; i < 4; ++i) X[i] = point(x, s[i]);
-        const Feature f = feature_of(point_triangle_case(X[0], X[1], X[2], X[3]));
-        const double d = point_triangle_distance(X[0], X[1], X[2], X[3]);
-        if (f.n == 2) unmollified_pair<2>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-        else if (f.n == 3) unmollified_pair<3>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-        else unmollified_pair<4>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-      } else {
-        const IndexPair& pair = c.edge_edge[idx];
-        const int32_t* ea = &model_.surface_edges[2 * int64_t{pair.first}];
-        const int32_t* eb = &model_.surface_edges[2 * int64_t{pair.second}];
-        s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
-        for (int i = 0; i < 4; ++i) X[i] = point(x, s[i]);
-        const EdgeEdgeCase ec = edge_edge_case(X[0], X[1], X[2], X[3]);
-        const Feature f = feature_of(ec);
-        const double d = edge_edge_distance(X[0], X[1], X[2], X[3], ec);
-        const double eps_x = edge_edge_threshold(model_, ea, eb);
-        if (!(edge_edge_cross_squarednorm(X[0], X[1], X[2], X[3]) < eps_x)) {
-          // Mollifier = 1 with zero derivatives: an ordinary pair.
-          if (f.n == 2) unmollified_pair<2>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-          else if (f.n == 3) unmollified_pair<3>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-          else unmollified_pair<4>(f, X, d, dhat2_, weight, with_hessian, grad, hess);
-        } else {
+    }
+  }, 1024);
+
+  // Stencils as the Newton system sees them (held vertices dropped) and their slab sizes.
+  stencils_.resize(4 * num_stencils);
+  slab_begin_.resize(num_stencils + 1);
+  slab_begin_[0] = 0;
+  parallel_for(num_stencils, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const int n = stencil_size(kind_[k]);
+      for (int i = 0; i < 4; ++i) {
+        const int32_t v = vertices_[4 * k + i];
+        stencils_[4 * k + i] = (i < n && model_.dirichlet[v] < 0) ? v : -1;
+      }
+      slab_begin_[k + 1] = 9 * n * n;
+    }
+  }, 4096);
+  for (int64_t k = 0; k < num_stencils; ++k) slab_begin_[k + 1] += slab_begin_[k];
+}
+
+// ---- derivatives ----------------------------------------------------------------------------
+
+namespace {
+
+// Derivatives of w b(d) for d = |a - b|^2, in closed form. With u = a - b the Hessian is
+// [K -K; -K K], K = 4 b'' u u^T + 2 b' I, whose eigenvalues are twice K's (and 0): K has
+// 4 b'' d + 2 b' along u and 2 b' across it, so the projection clamps those two numbers.
+void point_point_stencil(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double dhat2, double w,
+                         double* grad, double* hess) {
+  const Eigen::Vector3d u = a - b;
+  const double d = u.squaredNorm();
+  const double b1 = w * barrier_first_derivative(d, dhat2);
+  Eigen::Map<Eigen::Vector3d>{grad} = 2.0 * b1 * u;
+  Eigen::Map<Eigen::Vector3d>{grad + 3} = -2.0 * b1 * u;
+  if (!hess) return;
+  const double b2 = w * barrier_second_derivative(d, dhat2);
+  const double across = std::max(2.0 * b1, 0.0);
+  const double along = std::max(4.0 * b2 * d + 2.0 * b1, 0.0);
+  Eigen::Matrix3d K = ((along - across) / d) * u * u.transpose();
+  K.diagonal().array() += across;
+  Eigen::Map<Matrix6d> H{hess};
+  H << K, -K, -K, K;
+}
+
+// Derivatives of w b(d) for an affine distance d = min_lambda |X (w0 + B lambda)|^2 of K points
+// and M parameters (point-edge, point-triangle, edge-edge interiors; kernels/distance/
+// distance_primitives.hpp). d is passed in from the closed-form distance, which is more accurate
+// than |r|^2. The Hessian w (b'' g g^T + b' hess d) is V S V^T with V = [w (x) I3, B (x) r/|r|]
+// (3K x (3 + M)): g = 2 w (x) r and hess d = 2 w w^T (x) I3 - G (D^T D)^-1 G^T / 2 with
+// G = 2 (B (x) r + w (x) D) both lie in range(V), so it is zero outside that (3 + M)-dimensional
+// subspace and its exact PSD projection is a (3 + M) x (3 + M) eigenproblem in an orthonormal
+// basis Q = V L^-T of it (L L^T = V^T V), instead of a 3K x 3K one.
+template <int K, int M>
+void affine_stencil(const Eigen::Matrix<double, 3, K>& X, const Eigen::Matrix<double, K, 1>& w0,
+                    const Eigen::Matrix<double, K, M>& B, double d, double dhat2, double w,
+                    double* grad, double* hess) {
+  constexpr int R = 3 + M;
+  using MatrixR = Eigen::Matrix<double, R, R>;
+  const detail::AffineMinimum<K, M> m = detail::affine_minimum<K, M>(X, w0, B);
+  const double b1 = w * barrier_first_derivative(d, dhat2);
+  for (int i = 0; i < K; ++i) Eigen::Map<Eigen::Vector3d>{grad + 3 * i} = (2.0 * b1 * m.w(i)) * m.r;
+  if (!hess) return;
+  const double b2 = w * barrier_second_derivative(d, dhat2);
+  const double r_norm = m.r.norm();
+  const Eigen::Vector3d r_hat = m.r / r_norm;
+  Eigen::Matrix<double, 3 * K, R> V = Eigen::Matrix<double, 3 * K, R>::Zero();
+  for (int i = 0; i < K; ++i) {
+    V.template block<3, 3>(3 * i, 0).diagonal().setConstant(m.w(i));
+    for (int k = 0; k < M; ++k) V.template block<3, 1>(3 * i, 3 + k) = B(i, k) * r_hat;
+  }
+  Eigen::Matrix<double, R, M> E;  // G = 2 V E
+  E.template topRows<3>() = m.D;
+  E.template bottomRows<M>() = r_norm * Eigen::Matrix<double, M, M>::Identity();
+  MatrixR S = (-2.0 * b1) * E * m.A_inv * E.transpose();
+  S.template topLeftCorner<3, 3>() += (4.0 * b2) * m.r * m.r.transpose();
+  S.template topLeftCorner<3, 3>().diagonal().array() += 2.0 * b1;
+
+  Eigen::Map<Eigen::Matrix<double, 3 * K, 3 * K>> H{hess};
+  const Eigen::LLT<MatrixR> llt(V.transpose() * V);
+  if (llt.info() != Eigen::Success) {  // V is full rank for d > 0; kept as a safety net
+    Eigen::Matrix<double, 3 * K, 3 * K> full = V * S * V.transpose();
+    full = 0.5 * (full + full.transpose()).eval();
+    project_psd<3 * K>(full);
+    H = full;
+    return;
+  }
+  const MatrixR L = llt.matrixL();
+  MatrixR T = L.transpose() * S * L;
+  T = 0.5 * (T + T.transpose()).eval();
+  project_psd<R>(T);
+  const Eigen::Matrix<double, 3 * K, R> Q =
+      L.template triangularView<Eigen::Lower>().solve(V.transpose()).transpose();
+  const Eigen::Matrix<double, 3 * K, R> QT = Q.lazyProduct(T);
+  const Eigen::Matrix<double, 3 * K, 3 * K> full = QT.lazyProduct(Q.transpose());
+  H = 0.5 * (full + full.transpose());
+}
+
+// Projects the Hessian of a translation-invariant 4-point energy (a mollified edge-edge pair) onto
+// the PSD cone. Rigid translations are in its null space, so in the orthonormal basis
+// U = [q1 q2 q3] (x) I3, q1 = (1, -1, 0, 0) / sqrt 2, q2 = (1, 1, -2, 0) / sqrt 6,
+// q3 = (1, 1, 1, -3) / sqrt 12, of their complement the problem is 9x9 instead of 12x12 (about
+// 2.4x cheaper); the translations keep their eigenvalue 0.
+void project_psd_translation_free(Matrix12d& H) {
+  static const Eigen::Matrix<double, 12, 9> U = [] {
+    const double q[3][4] = {{1.0 / std::sqrt(2.0), -1.0 / std::sqrt(2.0), 0.0, 0.0},
+                            {1.0 / std::sqrt(6.0), 1.0 / std::sqrt(6.0), -2.0 / std::sqrt(6.0), 0.0},
+                            {1.0 / std::sqrt(12.0), 1.0 / std::sqrt(12.0), 1.0 / std::sqrt(12.0), -3.0 / std::sqrt(12.0)}};
+    Eigen::Matrix<double, 12, 9> u = Eigen::Matrix<double, 12, 9>::Zero();
+    for (int k = 0; k < 3; ++k)
+      for (int i = 0; i < 4; ++i) u.block<3, 3>(3 * i, 3 * k).diagonal().setConstant(q[k][i]);
+    return u;
+  }();
+  // lazyProduct: coefficient-wise small products, not the blocked GEMM path Eigen picks at 12x9.
+  const Eigen::Matrix<double, 9, 12> UtH = U.transpose().lazyProduct(H);
+  Matrix9d T = UtH.lazyProduct(U);
+  T = 0.5 * (T + T.transpose()).eval();
+  if (project_psd<9>(T) == 0) return;  // nothing clamped: H keeps its exact values
+  const Eigen::Matrix<double, 12, 9> UT = U.lazyProduct(T);
+  const Matrix12d projected = UT.lazyProduct(U.transpose());
+  H = 0.5 * (projected + projected.transpose());
+}
+
+}  // namespace
+
+int BarrierPotential::stencil_size(StencilKind kind) {
+  switch (kind) {
+    case StencilKind::vertex_plane: return 1;
+    case StencilKind::point_point: return 2;
+    case StencilKind::point_edge: return 3;
+    default: return 4;
+  }
+}
+
+double BarrierPotential::active_set_energy(const double* x) const {
+  return deterministic_sum(num_stencils(), [&](int64_t begin, int64_t end) {
+    double sum = 0.0;
+    for (int64_t k = begin; k < end; ++k) {
+      const int32_t* s = &vertices_[4 * k];
+      double e = 0.0;
+      switch (kind_[k]) {
+        case StencilKind::vertex_plane:
+          e = eval_vertex_plane(model_, x, {s[0], s[1]}, dhat2_).energy;
+          break;
+        case StencilKind::point_point:
+          e = barrier(point_point_distance(point(x, s[0]), point(x, s[1])), dhat2_);
+          break;
+        case StencilKind::point_edge:
+          e = barrier(point_line_distance(point(x, s[0]), point(x, s[1]), point(x, s[2])), dhat2_);
+          break;
+        case StencilKind::point_triangle:
+          e = barrier(point_plane_distance(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3])), dhat2_);
+          break;
+        case StencilKind::edge_edge:
+          e = barrier(line_line_distance(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3])), dhat2_);
+          break;
+        case StencilKind::edge_edge_mollified: {
+          const Eigen::Vector3d a0 = point(x, s[0]), a1 = point(x, s[1]), b0 = point(x, s[2]), b1 = point(x, s[3]);
+          e = barrier(edge_edge_distance(a0, a1, b0, b1), dhat2_) *
+              edge_edge_mollifier(a0, a1, b0, b1, edge_edge_threshold(model_, &s[0], &s[2]));
+          break;
+        }
+      }
+      sum += multiplicity_[k] * e;
+    }
+    return sum;
+  }, 1024);
+}
+
+void BarrierPotential::compute_derivatives(const double* x, double weight, bool with_hessian) {
+  const int64_t ns = num_stencils();
+  gradients_.resize(12 * ns);
+  if (with_hessian) hessians_.resize(slab_begin_[ns]);
+  parallel_for(ns, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const int32_t* s = &vertices_[4 * k];
+      const double w = weight * multiplicity_[k];
+      double* grad = &gradients_[12 * k];
+      double* hess = with_hessian ? &hessians_[slab_begin_[k]] : nullptr;
+      switch (kind_[k]) {
+        case StencilKind::vertex_plane: {
+          const ObstaclePlane& plane = model_.obstacle_planes[s[1]];
+          const double h = (point(x, s[0]) - plane.point).dot(plane.normal);
+          const double d = h * h;
+          const double b1 = w * barrier_first_derivative(d, dhat2_);
+          Eigen::Map<Eigen::Vector3d>{grad} = (2.0 * h * b1) * plane.normal;
+          if (hess) {
+            // b'' g g^T + b' 2 n n^T = (4 h^2 b'' + 2 b') n n^T: rank one, projected by its sign.
+            const double b2 = w * barrier_second_derivative(d, dhat2_);
+            const double lambda = std::max(0.0, 4.0 * d * b2 + 2.0 * b1);
+            Eigen::Map<Eigen::Matrix3d>{hess} = lambda * plane.normal * plane.normal.transpose();
+          }
+          break;
+        }
+        case StencilKind::point_point:
+          point_point_stencil(point(x, s[0]), point(x, s[1]), dhat2_, w, grad, hess);
+          break;
+        case StencilKind::point_edge: {
+          const Eigen::Vector3d p = point(x, s[0]), e0 = point(x, s[1]), e1 = point(x, s[2]);
+          affine_stencil<3, 1>(detail::columns(p, e0, e1), detail::point_line_w0(), detail::point_line_B(),
+                               point_line_distance(p, e0, e1), dhat2_, w, grad, hess);
+          break;
+        }
+        case StencilKind::point_triangle: {
+          const Eigen::Vector3d p = point(x, s[0]), t0 = point(x, s[1]), t1 = point(x, s[2]), t2 = point(x, s[3]);
+          affine_stencil<4, 2>(detail::columns(p, t0, t1, t2), detail::point_plane_w0(), detail::point_plane_B(),
+                               point_plane_distance(p, t0, t1, t2), dhat2_, w, grad, hess);
+          break;
+        }
+        case StencilKind::edge_edge: {
+          const Eigen::Vector3d a0 = point(x, s[0]), a1 = point(x, s[1]), b0 = point(x, s[2]), b1 = point(x, s[3]);
+          affine_stencil<4, 2>(detail::columns(a0, a1, b0, b1), detail::line_line_w0(), detail::line_line_B(),
+                               line_line_distance(a0, a1, b0, b1), dhat2_, w, grad, hess);
+          break;
+        }
+        case StencilKind::edge_edge_mollified: {
           // Nearly parallel: product rule on m(x) b(d(x)) over all 12 DOFs.
+          const Eigen::Vector3d X[4] = {point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3])};
+          const EdgeEdgeCase ec = edge_edge_case(X[0], X[1], X[2], X[3]);
+          const double d = edge_edge_distance(X[0], X[1], X[2], X[3], ec);
+          const double eps_x = edge_edge_threshold(model_, &s[0], &s[2]);
           Vector12d gd;
           Matrix12d Hd;
-          edge_edge_full_derivatives(f, X, gd, Hd);
+          edge_edge_full_derivatives(feature_of(ec), X, gd, hess ? &Hd : nullptr);
           const double m = edge_edge_mollifier(X[0], X[1], X[2], X[3], eps_x);
           const Vector12d gm = edge_edge_mollifier_gradient(X[0], X[1], X[2], X[3], eps_x);
           const double b = barrier(d, dhat2_);
           const double b1 = barrier_first_derivative(d, dhat2_);
-          const Vector12d g = weight * (m * b1 * gd + b * gm);
-          Eigen::Map<Vector12d>{grad} = g;
+          Eigen::Map<Vector12d>{grad} = w * (m * b1 * gd + b * gm);
           if (hess) {
             const double b2 = barrier_second_derivative(d, dhat2_);
             const Matrix12d Hm = edge_edge_mollifier_hessian(X[0], X[1], X[2], X[3], eps_x);
             Matrix12d H = m * (b2 * gd * gd.transpose() + b1 * Hd) +
                           b1 * (gd * gm.transpose() + gm * gd.transpose()) + b * Hm;
-            H *= weight;
-            project_psd<12>(H);
+            H *= w;
+            project_psd_translation_free(H);
             Eigen::Map<Matrix12d>{hess} = H;
           }
+          break;
         }
       }
-      // Held vertices have no DOFs in the solve: drop them from the stencil.
-      for (int i = 0; i < 4; ++i)
-        if (model_.dirichlet[s[i]] >= 0) s[i] = -1;
     }
-  }, 64);
+  }, 256);
 }
 
 void BarrierPotential::add_gradient(double* grad) const {
-  const int64_t na = num_active();
-  for (int64_t k = 0; k < na; ++k)
+  const int64_t ns = num_stencils();
+  for (int64_t k = 0; k < ns; ++k)
     for (int i = 0; i < 4; ++i) {
       const int32_t v = stencils_[4 * k + i];
       if (v < 0) continue;

@@ -8,12 +8,24 @@
 // positions it evaluates: after find_candidates(x0, x1) every x on the segment x0 -> x1 may be
 // evaluated, because the list holds every pair that comes closer than dhat anywhere on it.
 //
-// Per Newton iteration, assemble() computes the active pairs at x with their local gradients and
-// PSD-projected Hessians (parallel over pairs, one slab per pair, no sharing); the caller gathers
-// them into the global system in pair order, so results do not depend on the number of threads.
-// A pair's stencil is its 4 vertex ids (vertex-triangle: p, t0, t1, t2; edge-edge: ea0, ea1, eb0,
-// eb1; vertex-plane: v, -1, -1, -1); Dirichlet-held vertices are written as -1 too, because
-// their rows and columns are eliminated from the Newton system anyway.
+// Per Newton iteration the active set is built at x (build_active_set) and the derivatives are
+// computed over it (compute_derivatives). The active set is a list of stencils, one per closest
+// feature rather than one per candidate pair: a vertex facing a vertex of another surface is the
+// closest point of several vertex-triangle and edge-edge pairs, all with the same point-point
+// distance, so their barriers are the same number. Pairs whose closest feature is point-point or
+// point-edge are merged into one stencil per feature (its sorted vertex ids) with an integer
+// multiplicity, and the stencil's energy and derivatives are multiplicity x one evaluation (as
+// ipc-toolkit does). Point-triangle interiors, edge-edge interiors and mollified (nearly
+// parallel) edge-edge pairs are unique per pair and stay one stencil each; a mollified pair keeps
+// all 4 vertices because its mollifier depends on all of them.
+//
+// A stencil's derivatives are stored at its real size n (1 vertex-plane, 2 point-point,
+// 3 point-edge, 4 otherwise): a 3n gradient and a 3n x 3n PSD-projected Hessian slab. Both are
+// computed in parallel, one slab per stencil, and the caller gathers them in stencil order, so
+// results do not depend on the number of threads. stencils() lists each stencil's vertex ids
+// padded to 4 (vertex-triangle: p, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; point-edge: p,
+// e0 < e1; point-point: a < b; vertex-plane: v); absent and Dirichlet-held vertices are -1, the
+// latter because their rows and columns are eliminated from the Newton system anyway.
 #pragma once
 
 #include "engine/contact/candidates.hpp"
@@ -57,14 +69,27 @@ class BarrierPotential {
   };
   Summary summarize(const double* x) const;
 
-  // Active pairs at x with the derivatives of weight * b: gradient (12 per pair) and, when
-  // with_hessian, the PSD-projected Hessian (144 per pair, column-major 12x12, rows and columns
-  // in stencil order).
-  void assemble(const double* x, double weight, bool with_hessian);
-  int64_t num_active() const { return static_cast<int64_t>(stencils_.size() / 4); }
-  const std::vector<int32_t>& stencils() const { return stencils_; }  // (num_active x 4)
-  const std::vector<double>& local_hessians() const { return hessians_; }
-  // grad += the assembled gradient, in pair order.
+  // The active set at x: candidates closer than dhat, merged into stencils (see the top).
+  void build_active_set(const double* x);
+  // Derivatives of weight * b over the active set, at the x it was built at: gradient and, when
+  // with_hessian, the PSD-projected Hessian slabs (column-major 3n x 3n, rows and columns in
+  // stencil order, at slab_begin()[s]).
+  void compute_derivatives(const double* x, double weight, bool with_hessian);
+  void assemble(const double* x, double weight, bool with_hessian) {
+    build_active_set(x);
+    compute_derivatives(x, weight, with_hessian);
+  }
+  // sum over the active set of multiplicity x b: energy(x) again at the x of build_active_set,
+  // computed per merged feature (a check of the merging).
+  double active_set_energy(const double* x) const;
+  // Candidate pairs closer than dhat (the sum of the multiplicities).
+  int64_t num_active_pairs() const { return num_active_pairs_; }
+  int64_t num_stencils() const { return static_cast<int64_t>(kind_.size()); }
+  const std::vector<int32_t>& stencils() const { return stencils_; }            // (num_stencils x 4)
+  const std::vector<int32_t>& multiplicities() const { return multiplicity_; }  // (num_stencils)
+  const std::vector<int64_t>& slab_begin() const { return slab_begin_; }        // (num_stencils + 1)
+  const std::vector<double>& local_hessians() const { return hessians_; }       // (slab_begin.back())
+  // grad += the gradient of the last compute_derivatives(), in stencil order.
   void add_gradient(double* grad) const;
 
   // Largest alpha in (0, 1] such that x + t alpha p keeps every pair apart for t in [0, 1]
@@ -77,13 +102,37 @@ class BarrierPotential {
   double dhat_ = 0.0, dhat2_ = 0.0;
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
-  std::vector<uint8_t> candidate_active_;  // (candidates) workspace of assemble()
-  // Active set of the last assemble().
-  std::vector<uint8_t> active_kind_;     // 0 vertex-triangle, 1 edge-edge, 2 vertex-plane
-  std::vector<int32_t> active_index_;    // index into the candidate list of that kind
-  std::vector<int32_t> stencils_;        // (num_active x 4)
-  std::vector<double> gradients_;        // (num_active x 12)
-  std::vector<double> hessians_;         // (num_active x 144)
+
+  // Closest feature of a stencil; decides its size and derivative kernel.
+  enum class StencilKind : uint8_t {
+    vertex_plane, point_point, point_edge, point_triangle, edge_edge, edge_edge_mollified
+  };
+  static int stencil_size(StencilKind kind);  // vertices n: the slab is 3n x 3n
+  // A point-point (c = -1) or point-edge feature before merging: its vertices in key order.
+  struct FeatureKey {
+    int32_t a, b, c;  // point-point: a < b; point-edge: point a, edge b < c
+  };
+
+  // Workspace of build_active_set(), kept to avoid allocation per iteration.
+  std::vector<uint8_t> candidate_code_;       // (candidates) 0 inactive, else closest feature + 1
+  std::vector<int64_t> chunk_unique_begin_;   // (chunks + 1) unique stencils before each chunk
+  std::vector<int64_t> chunk_feature_begin_;  // (chunks + 1) mergeable pairs before each chunk
+  std::vector<FeatureKey> features_;          // (mergeable pairs) in candidate order
+  std::vector<FeatureKey> features_by_vertex_;  // the same, bucketed by a
+  std::vector<int64_t> vertex_feature_begin_;   // (num_vertices + 2) bucket of each vertex
+  std::vector<int64_t> vertex_stencil_begin_;   // (num_vertices + 1) first merged stencil of each
+
+  // Active set of the last build_active_set(): unique stencils in candidate order, then merged
+  // ones by first vertex.
+  int64_t num_active_pairs_ = 0;
+  std::vector<StencilKind> kind_;        // (num_stencils)
+  std::vector<int32_t> vertices_;        // (num_stencils x 4) real vertex ids; vertex-plane: v, plane
+  std::vector<int32_t> multiplicity_;    // (num_stencils) active pairs merged into the stencil
+  std::vector<int32_t> stencils_;        // (num_stencils x 4) vertex ids, -1 = absent or held
+  std::vector<int64_t> slab_begin_;      // (num_stencils + 1) prefix of (3n)^2
+  // Derivatives of the last compute_derivatives().
+  std::vector<double> gradients_;        // (num_stencils x 12), the first 3n used
+  std::vector<double> hessians_;         // (slab_begin_.back())
 };
 
 }  // namespace nexdyn

@@ -72,82 +72,146 @@ void ContactPattern::rebuild(std::vector<std::pair<int32_t, int32_t>> pairs) {
   ++version_;
 }
 
-bool ContactPattern::update(const std::vector<int32_t>& stencils, bool allow_shrink) {
-  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
-  if (num * 144 > int64_t{UINT32_MAX})
-    throw std::length_error("more than 29.8 M contact pairs in one Newton system: not supported");
+void ContactPattern::locate_blocks(const std::vector<int32_t>& stencils) {
+  const int64_t num = static_cast<int64_t>(stencil_size_.size());
+  parallel_for(num, [&](int64_t begin, int64_t end) {
+    for (int64_t s = begin; s < end; ++s) {
+      const int32_t* v = &stencils[4 * s];
+      int64_t k = block_begin_[s];
+      for (int a = 0; a < stencil_size_[s]; ++a)
+        for (int b = a; b < stencil_size_[s]; ++b, ++k) {
+          const int32_t i = std::min(v[a], v[b]), j = std::max(v[a], v[b]);
+          block_value_[k] = i < 0 ? kHeld : block_value(i, 3 * int64_t{j});
+        }
+    }
+  }, 1024);
+}
 
-  // Vertex pairs the stencils couple that the tets do not.
-  auto elastic_has = [&](int32_t j, int32_t i) {
+bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
+                            bool allow_shrink) {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
+  if (slab_begin[num] > int64_t{UINT32_MAX})
+    throw std::length_error("over 4.29 G contact Hessian values in one Newton system: not supported");
+  stencil_size_.resize(num);
+  block_begin_.resize(num + 1);
+  block_begin_[0] = 0;
+  for (int64_t s = 0; s < num; ++s) {
+    const int64_t slab = slab_begin[s + 1] - slab_begin[s];
+    const int n = slab == 9 ? 1 : slab == 36 ? 2 : slab == 81 ? 3 : 4;
+    stencil_size_[s] = static_cast<int8_t>(n);
+    block_begin_[s + 1] = block_begin_[s] + n * (n + 1) / 2;
+  }
+  block_value_.resize(block_begin_[num]);
+  locate_blocks(stencils);
+
+  // The vertex pairs (J, I), I < J, of some stencil's blocks for which `keep` is true.
+  auto pairs_where = [&](auto&& keep) {
+    std::vector<std::pair<int32_t, int32_t>> pairs;
+    for (int64_t s = 0; s < num; ++s) {
+      const int32_t* v = &stencils[4 * s];
+      int64_t k = block_begin_[s];
+      for (int a = 0; a < stencil_size_[s]; ++a)
+        for (int b = a; b < stencil_size_[s]; ++b, ++k) {
+          const int32_t i = std::min(v[a], v[b]), j = std::max(v[a], v[b]);
+          if (i >= 0 && i != j && keep(i, j, block_value_[k])) pairs.emplace_back(j, i);
+        }
+    }
+    std::sort(pairs.begin(), pairs.end());
+    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    return pairs;
+  };
+  auto elastic_has = [&](int32_t i, int32_t j) {
     const auto first = elastic_neighbors_.begin() + elastic_neighbor_ptr_[j];
     const auto last = elastic_neighbors_.begin() + elastic_neighbor_ptr_[j + 1];
     return std::binary_search(first, last, i);
   };
-  std::vector<std::pair<int32_t, int32_t>> needed;
-  for (int64_t s = 0; s < num; ++s)
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b) {
-        const int32_t i = stencils[4 * s + a], j = stencils[4 * s + b];
-        if (i >= 0 && j >= 0 && i < j && !elastic_has(j, i)) needed.emplace_back(j, i);
-      }
-  std::sort(needed.begin(), needed.end());
-  needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
 
   bool changed = false;
-  const bool covered = std::includes(contact_pairs_.begin(), contact_pairs_.end(), needed.begin(),
-                                     needed.end());
-  if (!covered) {
-    std::vector<std::pair<int32_t, int32_t>> all = contact_pairs_;
-    all.insert(all.end(), needed.begin(), needed.end());
+  if (std::find(block_value_.begin(), block_value_.end(), kAbsent) != block_value_.end()) {
+    std::vector<std::pair<int32_t, int32_t>> all =
+        pairs_where([](int32_t, int32_t, int64_t value) { return value == kAbsent; });
+    all.insert(all.end(), contact_pairs_.begin(), contact_pairs_.end());
     rebuild(std::move(all));
     changed = true;
-  } else if (allow_shrink && contact_pairs_.size() > 4 * needed.size() + 64) {
-    rebuild(std::move(needed));
-    changed = true;
-  }
-
-  // Gather table: count per column, prefix-sum, fill in stencil order.
-  entry_ptr_.assign(merged_.num_dofs + 1, 0);
-  auto for_each_block = [&](auto&& f) {
-    for (int64_t s = 0; s < num; ++s)
-      for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b) {
-          const int32_t i = stencils[4 * s + a], j = stencils[4 * s + b];
-          if (i < 0 || j < 0 || i > j) continue;
-          for (int c = 0; c < 3; ++c) f(s, a, b, i, j, c);
+  } else if (allow_shrink) {
+    // Distinct contact (non-elastic) blocks in use, each counted once by its value index.
+    seen_.assign(merged_.nnz() / 64 + 1, 0);
+    int64_t used = 0;
+    for (int64_t s = 0; s < num; ++s) {
+      const int32_t* v = &stencils[4 * s];
+      int64_t k = block_begin_[s];
+      for (int a = 0; a < stencil_size_[s]; ++a)
+        for (int b = a; b < stencil_size_[s]; ++b, ++k) {
+          const int32_t i = std::min(v[a], v[b]), j = std::max(v[a], v[b]);
+          if (i < 0 || i == j || elastic_has(i, j)) continue;
+          uint64_t& word = seen_[block_value_[k] / 64];
+          const uint64_t bit = uint64_t{1} << (block_value_[k] % 64);
+          used += (word & bit) == 0;
+          word |= bit;
         }
-  };
-  for_each_block([&](int64_t, int, int, int32_t, int32_t j, int c) { ++entry_ptr_[3 * int64_t{j} + c + 1]; });
-  for (int64_t c = 0; c < merged_.num_dofs; ++c) entry_ptr_[c + 1] += entry_ptr_[c];
-  entries_.resize(entry_ptr_.back());
-  std::vector<int64_t> fill(entry_ptr_.begin(), entry_ptr_.end() - 1);
-  for_each_block([&](int64_t s, int a, int b, int32_t i, int32_t j, int c) {
-    const int64_t column = 3 * int64_t{j} + c;
-    const int64_t value = block_value(i, column);
-    const uint32_t length = (i == j) ? static_cast<uint32_t>(c + 1) : 3u;
-    entries_[fill[column]++] = {value, static_cast<uint32_t>(s * 144 + (3 * b + c) * 12 + 3 * a), length};
-  });
+    }
+    if (static_cast<int64_t>(contact_pairs_.size()) > 4 * used + 64) {
+      rebuild(pairs_where([&](int32_t i, int32_t j, int64_t) { return !elastic_has(i, j); }));
+      changed = true;
+    }
+  }
+  if (changed) locate_blocks(stencils);
+
+  // Gather table: a stable counting sort of the blocks by vertex column. Counting at J + 2 and
+  // filling through J + 1 leaves entry_ptr_[J] at column J's first entry.
+  const int64_t nv = merged_.num_dofs / 3;
+  entry_ptr_.assign(nv + 2, 0);
+  for (int64_t s = 0; s < num; ++s) {
+    const int32_t* v = &stencils[4 * s];
+    for (int a = 0; a < stencil_size_[s]; ++a)
+      for (int b = a; b < stencil_size_[s]; ++b)
+        if (v[a] >= 0 && v[b] >= 0) ++entry_ptr_[std::max(v[a], v[b]) + 2];
+  }
+  for (int64_t j = 0; j < nv; ++j) entry_ptr_[j + 2] += entry_ptr_[j + 1];
+  entries_.resize(entry_ptr_[nv + 1]);
+  for (int64_t s = 0; s < num; ++s) {
+    const int32_t* v = &stencils[4 * s];
+    const int n = stencil_size_[s];
+    int64_t k = block_begin_[s];
+    for (int a = 0; a < n; ++a)
+      for (int b = a; b < n; ++b, ++k) {
+        if (block_value_[k] == kHeld) continue;
+        // The block's rows belong to the smaller vertex id, its columns to the larger.
+        const int row = v[a] <= v[b] ? a : b, col = v[a] <= v[b] ? b : a;
+        const Entry entry{block_value_[k], static_cast<uint32_t>(slab_begin[s] + 3 * col * 3 * n + 3 * row),
+                          static_cast<uint16_t>(3 * n), static_cast<uint16_t>(a == b)};
+        entries_[entry_ptr_[v[col] + 1]++] = entry;
+      }
+  }
   return changed;
 }
 
 void ContactPattern::assemble(const double* elastic_values, const double* slabs, double* values) const {
   const CscPattern& e = elastic_;
-  parallel_for(merged_.num_dofs, [&](int64_t begin, int64_t end) {
-    for (int64_t c = begin; c < end; ++c) {
-      // Elastic rows are a sorted subset of the merged rows: merge by walking both.
-      int64_t k = merged_.col_ptr[c];
-      const int64_t k_end = merged_.col_ptr[c + 1];
-      for (int64_t q = e.col_ptr[c]; q < e.col_ptr[c + 1]; ++q) {
-        while (merged_.row_idx[k] != e.row_idx[q]) values[k++] = 0.0;
-        values[k++] = elastic_values[q];
+  const int64_t nv = merged_.num_dofs / 3;
+  parallel_for(nv, [&](int64_t begin, int64_t end) {
+    for (int64_t j = begin; j < end; ++j)
+      for (int c = 0; c < 3; ++c) {
+        const int64_t column = 3 * j + c;
+        // Elastic rows are a sorted subset of the merged rows: merge by walking both.
+        int64_t k = merged_.col_ptr[column];
+        const int64_t k_end = merged_.col_ptr[column + 1];
+        for (int64_t q = e.col_ptr[column]; q < e.col_ptr[column + 1]; ++q) {
+          while (merged_.row_idx[k] != e.row_idx[q]) values[k++] = 0.0;
+          values[k++] = elastic_values[q];
+        }
+        for (; k < k_end; ++k) values[k] = 0.0;
+        // DOF column 3J + c lists the same rows as 3J, shifted (and its diagonal block has c + 1).
+        const int64_t shift = merged_.col_ptr[column] - merged_.col_ptr[3 * j];
+        for (int64_t q = entry_ptr_[j]; q < entry_ptr_[j + 1]; ++q) {
+          const Entry& en = entries_[q];
+          const int rows = en.diagonal ? c + 1 : 3;
+          double* out = values + en.value + shift;
+          const double* in = slabs + en.source + c * en.stride;
+          for (int r = 0; r < rows; ++r) out[r] += in[r];
+        }
       }
-      for (; k < k_end; ++k) values[k] = 0.0;
-      for (int64_t q = entry_ptr_[c]; q < entry_ptr_[c + 1]; ++q) {
-        const Entry& en = entries_[q];
-        for (uint32_t r = 0; r < en.length; ++r) values[en.value + r] += slabs[en.source + r];
-      }
-    }
-  }, 512);
+  }, 256);
 }
 
 }  // namespace nexdyn

@@ -8,9 +8,9 @@
 // grown to several times what the current contacts need.
 //
 // Values: the elastic values (in the elastic pattern's order) are merged column by column, then
-// the contact slabs are added through a gather table built per active set: entries are bucketed
-// by column and kept in pair order within a column, so every value is summed in the same order
-// whatever the number of threads.
+// the contact slabs are added through a gather table built per active set: one entry per 3x3
+// block of a stencil in the upper triangle, bucketed by vertex column and kept in stencil order
+// within a column, so every value is summed in the same order whatever the number of threads.
 #pragma once
 
 #include "engine/solver/hessian_pattern.hpp"
@@ -25,10 +25,13 @@ class ContactPattern {
  public:
   explicit ContactPattern(const HessianPattern& elastic);
 
-  // Makes the pattern hold every vertex pair of the stencils ((num x 4) vertex ids, -1 = none)
-  // and builds their gather table. With allow_shrink, a pattern holding over 4x the pairs the
+  // Makes the pattern hold every vertex pair of the stencils and builds their gather table.
+  // stencils: (num x 4) vertex ids, -1 = no DOFs (held, or past the stencil's n vertices);
+  // slab_begin: (num + 1) start of each stencil's column-major 3n x 3n slab in the slab array,
+  // so n = sqrt(slab size) / 3. With allow_shrink, a pattern holding over 4x the pairs the
   // stencils need is rebuilt to fit them. Returns true when the pattern changed.
-  bool update(const std::vector<int32_t>& stencils, bool allow_shrink);
+  bool update(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
+              bool allow_shrink);
 
   const CscPattern& pattern() const { return merged_; }
   // Incremented by every rebuild of the pattern.
@@ -36,7 +39,7 @@ class ContactPattern {
   int64_t num_contact_pairs() const { return static_cast<int64_t>(contact_pairs_.size()); }
 
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
-  // of their 12x12 slabs (column-major, 144 per stencil, as given to update()).
+  // of their slabs (laid out as given to update()).
   void assemble(const double* elastic_values, const double* contact_slabs, double* values) const;
 
  private:
@@ -52,12 +55,22 @@ class ContactPattern {
   std::vector<int32_t> elastic_neighbors_;               // vertices I < J coupled by a tet
   std::vector<std::pair<int32_t, int32_t>> contact_pairs_;  // sorted (J, I), I < J, not elastic
 
+  // Value index of every block (a <= b) of every stencil: kAbsent when the pattern lacks it,
+  // kHeld when a vertex has no DOFs.
+  void locate_blocks(const std::vector<int32_t>& stencils);
+  static constexpr int64_t kAbsent = -1, kHeld = -2;
+
   struct Entry {
-    int64_t value;    // first value of the 1-3 consecutive rows
-    uint32_t source;  // slab index of the first row: stencil * 144 + local_col * 12 + local_row
-    uint32_t length;  // rows: 3, or 1-3 in a diagonal block
+    int64_t value;      // value index of the block's first row in its vertex's first DOF column
+    uint32_t source;    // slab index of the block's first row in its first column
+    uint16_t stride;    // 3n: the slab's column length
+    uint16_t diagonal;  // 1 when the block is on the diagonal: DOF column c holds rows 0..c
   };
-  std::vector<int64_t> entry_ptr_;  // (num_dofs + 1) entries of each column
+  std::vector<int8_t> stencil_size_;    // (num stencils) n
+  std::vector<int64_t> block_begin_;    // (num stencils + 1) first block; n (n + 1) / 2 each
+  std::vector<int64_t> block_value_;    // (blocks) value index, kAbsent or kHeld
+  std::vector<uint64_t> seen_;          // (nnz / 64 + 1) bitmap of the shrink check
+  std::vector<int64_t> entry_ptr_;      // (num_vertices + 2) entries of each vertex column
   std::vector<Entry> entries_;
 };
 

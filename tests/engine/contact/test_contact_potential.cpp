@@ -1,17 +1,25 @@
 // The contact part of the Newton system against independent references: the gradient of the
 // incremental potential with barrier against finite differences of its energy, the merged sparse
-// Hessian against a dense sum of the element and contact blocks, and bitwise equality for 1 and
-// 2 threads. (Candidates against the brute force: test_candidates.cpp.)
+// Hessian against a dense sum of the element and contact blocks, bitwise equality for 1 and
+// 2 threads, and the active set merged by closest feature against every pair on its own.
+// (Candidates against the brute force: test_candidates.cpp.)
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/candidates.hpp"
 #include "engine/elastic_assembly.hpp"
 #include "engine/incremental_potential.hpp"
+#include "kernels/barrier/barrier.hpp"
+#include "kernels/distance/edge_edge_distance.hpp"
+#include "kernels/distance/edge_edge_mollifier.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
+#include "kernels/projection/psd_projection.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <numeric>
 #include <random>
 
 using namespace nexdyn;
@@ -46,6 +54,9 @@ std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsi
 
 constexpr double kDhat = 0.05;
 
+// Vertices n of a stencil from its 3n x 3n slab size.
+int64_t test_stencil_size(int64_t slab_size) { return std::lround(std::sqrt(double(slab_size))) / 3; }
+
 }  // namespace
 
 TEST_CASE("incremental potential gradient with contact matches finite differences") {
@@ -59,7 +70,7 @@ TEST_CASE("incremental potential gradient with contact matches finite difference
   potential.begin_step(x_tilde, 1e-4, 2e-4, true);
   potential.begin_solve(x.data());
   potential.prepare(x.data(), true);
-  REQUIRE(contact.num_active() > 20);
+  REQUIRE(contact.num_active_pairs() > 20);
   REQUIRE(std::isfinite(potential.energy(x.data())));
   std::vector<double> grad(model.num_dofs()), values(potential.pattern().nnz());
   potential.gradient_hessian(x.data(), grad.data(), values.data());
@@ -107,24 +118,28 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     for (int32_t v = 0; v < model.num_vertices; ++v)
       for (int d = 0; d < 3; ++d) H(3 * v + d, 3 * v + d) += model.mass[v];
     const std::vector<int32_t>& st = contact.stencils();
+    const std::vector<int64_t>& begin = contact.slab_begin();
     const std::vector<double>& slabs = contact.local_hessians();
-    for (int64_t k = 0; k < contact.num_active(); ++k)
-      for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b) {
+    for (int64_t k = 0; k < contact.num_stencils(); ++k) {
+      const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
+      for (int a = 0; a < size; ++a)
+        for (int b = 0; b < size; ++b) {
           if (st[4 * k + a] < 0 || st[4 * k + b] < 0) continue;
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c)
-              H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[144 * k + (3 * b + c) * 12 + 3 * a + r];
+              H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
         }
+    }
     *reference = H;
     CHECK(potential.pattern().nnz() > elastic.pattern().nnz());  // contact added blocks
     const Eigen::MatrixXd assembled = test::dense_from(potential.pattern(), values);
     CHECK((assembled - H).cwiseAbs().maxCoeff() <= 1e-12 * H.cwiseAbs().maxCoeff());
     // Every contact slab is symmetric PSD after projection.
-    for (int64_t k = 0; k < contact.num_active(); ++k) {
-      const Eigen::Map<const Eigen::Matrix<double, 12, 12>> S(&slabs[144 * k]);
+    for (int64_t k = 0; k < contact.num_stencils(); ++k) {
+      const int64_t n = 3 * test_stencil_size(begin[k + 1] - begin[k]);
+      const Eigen::Map<const Eigen::MatrixXd> S(&slabs[begin[k]], n, n);
       CHECK((S - S.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * (1.0 + S.cwiseAbs().maxCoeff()));
-      CHECK(Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>>(S).eigenvalues().minCoeff() >=
+      CHECK(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S).eigenvalues().minCoeff() >=
             -1e-9 * (1.0 + S.cwiseAbs().maxCoeff()));
     }
   };
@@ -157,4 +172,123 @@ TEST_CASE("CCD-capped step never crosses: the boxes pushed into each other stop 
   const BarrierPotential::Summary summary = contact.summarize(y.data());
   CHECK(summary.min_distance > 0.0);
   CHECK(summary.min_distance < 0.01 * 0.25);
+}
+
+namespace {
+
+// 2 x 2 x 1 boxes of 3^3 cells 0.01 m apart with aligned faces (the bench's cube grid, small):
+// every surface vertex facing another cube faces one of its vertices, so with dhat = 0.05 m the
+// same point-point feature is the closest feature of many vertex-triangle and edge-edge pairs.
+Scene aligned_boxes() {
+  return test::scene_from_json(R"({
+    "materials": { "a": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.3, 0.3, 0.3], "cells": [3, 3, 3] }, "material": "a",
+                  "array": { "count": [2, 2, 1], "spacing": [0.31, 0.31, 1.0] } } ]
+  })", "contact_aligned_boxes");
+}
+
+// The non-merged reference: every active candidate on its own, with the kernels' full 12-DOF
+// distance derivatives and the brute-force 12x12 PSD projection. Returns the energy; adds the
+// gradient and the dense Hessian.
+double pairwise_barrier(const Model& m, const ContactCandidates& c, const double* x, double dhat2,
+                        Eigen::VectorXd& grad, Eigen::MatrixXd& H, int64_t& active) {
+  auto pt = [&](int32_t v) { return Eigen::Vector3d(x[3 * v], x[3 * v + 1], x[3 * v + 2]); };
+  auto rest = [&](int32_t v) { return Eigen::Vector3d::Map(&m.rest_positions[3 * int64_t{v}]); };
+  double energy = 0.0;
+  auto add = [&](const int32_t (&s)[4], const Vector12d& g, Matrix12d h) {
+    project_psd<12>(h);
+    for (int a = 0; a < 4; ++a) {
+      grad.segment<3>(3 * s[a]) += g.segment<3>(3 * a);
+      for (int b = 0; b < 4; ++b) H.block<3, 3>(3 * s[a], 3 * s[b]) += h.block<3, 3>(3 * a, 3 * b);
+    }
+  };
+  for (const IndexPair& pair : c.vertex_triangle) {
+    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+    const int32_t s[4] = {pair.first, t[0], t[1], t[2]};
+    const PointTriangleCase pc = point_triangle_case(pt(s[0]), pt(s[1]), pt(s[2]), pt(s[3]));
+    const double d = point_triangle_distance(pt(s[0]), pt(s[1]), pt(s[2]), pt(s[3]), pc);
+    if (!(d < dhat2)) continue;
+    ++active;
+    energy += barrier(d, dhat2);
+    const Vector12d gd = point_triangle_distance_gradient(pt(s[0]), pt(s[1]), pt(s[2]), pt(s[3]), pc);
+    const Matrix12d hd = point_triangle_distance_hessian(pt(s[0]), pt(s[1]), pt(s[2]), pt(s[3]), pc);
+    const double b1 = barrier_first_derivative(d, dhat2), b2 = barrier_second_derivative(d, dhat2);
+    add(s, b1 * gd, b2 * gd * gd.transpose() + b1 * hd);
+  }
+  for (const IndexPair& pair : c.edge_edge) {
+    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+    const int32_t s[4] = {ea[0], ea[1], eb[0], eb[1]};
+    const Eigen::Vector3d a0 = pt(s[0]), a1 = pt(s[1]), b0 = pt(s[2]), b1 = pt(s[3]);
+    const EdgeEdgeCase ec = edge_edge_case(a0, a1, b0, b1);
+    const double d = edge_edge_distance(a0, a1, b0, b1, ec);
+    if (!(d < dhat2)) continue;
+    ++active;
+    const double eps_x = edge_edge_mollifier_threshold(rest(s[0]), rest(s[1]), rest(s[2]), rest(s[3]));
+    const double mo = edge_edge_mollifier(a0, a1, b0, b1, eps_x);
+    const Vector12d gm = edge_edge_mollifier_gradient(a0, a1, b0, b1, eps_x);
+    const Matrix12d hm = edge_edge_mollifier_hessian(a0, a1, b0, b1, eps_x);
+    const Vector12d gd = edge_edge_distance_gradient(a0, a1, b0, b1, ec);
+    const Matrix12d hd = edge_edge_distance_hessian(a0, a1, b0, b1, ec);
+    const double b = barrier(d, dhat2);
+    const double d1 = barrier_first_derivative(d, dhat2), d2 = barrier_second_derivative(d, dhat2);
+    energy += mo * b;
+    add(s, mo * d1 * gd + b * gm,
+        mo * (d2 * gd * gd.transpose() + d1 * hd) + d1 * (gd * gm.transpose() + gm * gd.transpose()) + b * hm);
+  }
+  return energy;
+}
+
+}  // namespace
+
+TEST_CASE("merging equal closest features changes no energy, gradient or Hessian") {
+  const Scene scene = aligned_boxes();
+  const Model& model = scene.model;
+  const double dhat = 0.05, dhat2 = dhat * dhat;
+  // At rest (the features coincide exactly) and slightly moved (each vertex over a vertex stays
+  // the closest feature of the same pairs, at distances that differ per feature).
+  for (const double amount : {0.0, 1e-4}) {
+    CAPTURE(amount);
+    const std::vector<double> x = perturbed(model.rest_positions, amount, 11);
+    BarrierPotential contact(model, dhat);
+    contact.find_candidates(x.data(), nullptr);
+    contact.assemble(x.data(), 1.0, true);
+
+    const int64_t n = model.num_dofs();
+    Eigen::VectorXd grad_ref = Eigen::VectorXd::Zero(n);
+    Eigen::MatrixXd H_ref = Eigen::MatrixXd::Zero(n, n);
+    int64_t active = 0;
+    const double energy_ref = pairwise_barrier(model, contact.candidates(), x.data(), dhat2, grad_ref, H_ref, active);
+
+    // Many pairs share a feature, and the multiplicities account for every one of them.
+    const std::vector<int32_t>& mult = contact.multiplicities();
+    CHECK(contact.num_active_pairs() == active);
+    CHECK(std::accumulate(mult.begin(), mult.end(), int64_t{0}) == active);
+    CHECK(contact.num_stencils() < active / 2);
+    CHECK(*std::max_element(mult.begin(), mult.end()) > 4);
+
+    CHECK(energy_ref > 0.0);
+    CHECK(std::abs(contact.active_set_energy(x.data()) - energy_ref) <= 1e-12 * energy_ref);
+    CHECK(std::abs(contact.energy(x.data()) - energy_ref) <= 1e-12 * energy_ref);
+
+    Eigen::VectorXd grad = Eigen::VectorXd::Zero(n);
+    contact.add_gradient(grad.data());
+    CHECK(grad_ref.cwiseAbs().maxCoeff() > 0.0);
+    CHECK((grad - grad_ref).cwiseAbs().maxCoeff() <= 1e-12 * grad_ref.cwiseAbs().maxCoeff());
+
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
+    const std::vector<int32_t>& st = contact.stencils();
+    const std::vector<int64_t>& begin = contact.slab_begin();
+    const std::vector<double>& slabs = contact.local_hessians();
+    for (int64_t k = 0; k < contact.num_stencils(); ++k) {
+      const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
+      for (int a = 0; a < size; ++a)
+        for (int b = 0; b < size; ++b)
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c)
+              H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
+    }
+    CHECK(H_ref.cwiseAbs().maxCoeff() > 0.0);
+    CHECK((H - H_ref).cwiseAbs().maxCoeff() <= 1e-12 * H_ref.cwiseAbs().maxCoeff());
+  }
 }
