@@ -32,21 +32,32 @@ void parallel_for(int64_t n, Body&& body, int64_t grain = kDefaultGrain) {
                     tbb::simple_partitioner());
 }
 
+// Calls chunk(c, begin, end) for chunks c = 0, 1, ... of [0, n), each `grain` items long (the
+// last may be shorter), in parallel. The chunk boundaries depend on n and grain only, so a caller
+// that writes chunk c's result to slot c and combines the slots in order gets the same result on
+// any number of threads. Returns the number of chunks.
+template <typename Chunk>
+int64_t for_each_chunk(int64_t n, int64_t grain, Chunk&& chunk) {
+  if (n <= 0) return 0;
+  const int64_t num_chunks = (n + grain - 1) / grain;
+  tbb::parallel_for(
+      tbb::blocked_range<int64_t>(0, num_chunks, 1),
+      [&](const tbb::blocked_range<int64_t>& r) {
+        for (int64_t c = r.begin(); c < r.end(); ++c)
+          chunk(c, c * grain, std::min(n, (c + 1) * grain));
+      },
+      tbb::simple_partitioner());
+  return num_chunks;
+}
+
 // Deterministic sum of chunk(begin, end) -> double over [0, n): the chunk boundaries are multiples
 // of `grain` whatever the thread count, and the partial sums are added in chunk order.
 template <typename Chunk>
 double deterministic_sum(int64_t n, Chunk&& chunk, int64_t grain = kDefaultGrain) {
   if (n <= 0) return 0.0;
-  const int64_t num_chunks = (n + grain - 1) / grain;
-  if (num_chunks == 1) return chunk(int64_t{0}, n);
-  std::vector<double> partial(static_cast<size_t>(num_chunks));
-  tbb::parallel_for(
-      tbb::blocked_range<int64_t>(0, num_chunks, 1),
-      [&](const tbb::blocked_range<int64_t>& r) {
-        for (int64_t c = r.begin(); c < r.end(); ++c)
-          partial[c] = chunk(c * grain, std::min(n, (c + 1) * grain));
-      },
-      tbb::simple_partitioner());
+  if (n <= grain) return chunk(int64_t{0}, n);
+  std::vector<double> partial(static_cast<size_t>((n + grain - 1) / grain));
+  for_each_chunk(n, grain, [&](int64_t c, int64_t begin, int64_t end) { partial[c] = chunk(begin, end); });
   double total = 0.0;
   for (double p : partial) total += p;
   return total;

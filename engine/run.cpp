@@ -70,6 +70,27 @@ void remove_old_frames(const fs::path& frames_dir) {
 
 }  // namespace
 
+std::string profile_line(const RunSummary& summary) {
+  if (summary.steps_done <= 0) return "";
+  const double per_step_ms = 1e3 / double(summary.steps_done);
+  std::string line;
+  char buf[96];
+  double phases = 0.0;
+  for (size_t p = 0; p < kStepPhaseNames.size(); ++p) {
+    const double seconds = summary.profile.seconds(static_cast<StepPhase>(p));
+    phases += seconds;
+    std::snprintf(buf, sizeof buf, "%s %s %.3g", line.empty() ? "" : " +", kStepPhaseNames[p], seconds * per_step_ms);
+    line += buf;
+  }
+  std::snprintf(buf, sizeof buf, " + other %.3g", std::max(0.0, summary.step_seconds - phases) * per_step_ms);
+  line += buf;
+  char head[64];
+  std::snprintf(head, sizeof head, "time per step: %.4g ms =", summary.step_seconds * per_step_ms);
+  std::snprintf(buf, sizeof buf, "; Newton iterations per step: %.3g",
+                double(summary.newton_iterations) / double(summary.steps_done));
+  return head + line + buf;
+}
+
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   const int64_t total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
@@ -115,6 +136,8 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
       break;
     }
     stats << stats_row(simulation.last_stats()) << '\n';
+    summary.step_seconds += simulation.last_stats().wall_seconds;
+    summary.newton_iterations += simulation.last_stats().newton_iterations;
     if (!stats) throw std::runtime_error(partial.string() + ": write failed (disk full?)");
     if (step % scene.output.every == 0) write_frame(step);
     summary.steps_done = step;
@@ -126,6 +149,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
     fs::rename(partial, out / "stats.csv", ec);
     if (ec) throw std::runtime_error((out / "stats.csv").string() + ": cannot rename into place: " + ec.message());
   }
+  summary.profile = simulation.profile();
   summary.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

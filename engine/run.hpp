@@ -7,6 +7,7 @@
 
 #include "engine/scene/scene.hpp"
 #include "engine/simulation.hpp"
+#include "engine/step_profile.hpp"
 
 #include <cstdio>
 #include <filesystem>
@@ -30,7 +31,16 @@ struct RunSummary {
   int64_t steps_done = 0;
   double wall_seconds = 0.0;
   std::string message;  // why the run stopped early
+  // Where the steps' time went: the sum of the steps' wall_seconds, its split by phase, and the
+  // Newton iterations of all steps.
+  double step_seconds = 0.0;
+  StepProfile profile;
+  int64_t newton_iterations = 0;
 };
+
+// "time per step: 12.3 ms = broad phase 1.2 + CCD 0.3 + ... + other 0.1; Newton iterations per
+// step: 4.5", or "" when no step was done.
+std::string profile_line(const RunSummary& summary);
 
 std::string stats_row(const StepStats& s);
 

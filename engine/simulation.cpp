@@ -97,7 +97,10 @@ StepOutcome Simulation::step() {
     update_explicit(integrator, dt, a_next_, state_.v, state_.a);
     state_.x.swap(x_next_);
   } else {
-    if (!newton_) newton_ = std::make_unique<NewtonSolver>(model_, potential_);
+    if (!newton_) {
+      newton_ = std::make_unique<NewtonSolver>(model_, potential_);
+      newton_->set_profile(&profile_);
+    }
     const double scale = integrator.potential_scale(dt);
     potential_.begin_step(state_.x_tilde, scale, integrator.is_static ? scale : scale / integrator.gamma,
                           !integrator.is_static);
@@ -126,7 +129,10 @@ StepOutcome Simulation::step() {
   stats_.step = state_.step;
   stats_.time = state_.time;
   stats_.newton_iterations = iterations;
-  measure(stats_);
+  {
+    ProfileScope scope(&profile_, StepPhase::measure);
+    measure(stats_);
+  }
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return outcome;
 }

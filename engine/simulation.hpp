@@ -17,6 +17,7 @@
 #include "engine/scene/scene.hpp"
 #include "engine/solver/newton.hpp"
 #include "engine/solver/step_status.hpp"
+#include "engine/step_profile.hpp"
 
 #include <Eigen/Core>
 
@@ -59,6 +60,8 @@ class Simulation {
   const StepStats& last_stats() const { return stats_; }
   // Energies and momentum of the current state (step, time, iterations, wall time untouched).
   void measure(StepStats& stats) const;
+  // Wall time of all steps so far, by phase.
+  const StepProfile& profile() const { return profile_; }
 
  private:
   void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a) const;
@@ -72,6 +75,7 @@ class Simulation {
   const Model& model_;
   State state_;
   StepStats stats_;
+  StepProfile profile_;
   ElasticAssembly elastic_;
   std::unique_ptr<BarrierPotential> contact_;  // null without contact
   IncrementalPotential potential_;

@@ -122,9 +122,11 @@ int main(int argc, char** argv) {
                    (options.out_dir / "stats.partial.csv").string().c_str());
       return 2;
     }
-    if (!quiet)
+    if (!quiet) {
       std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(summary.steps_done),
                   summary.wall_seconds, options.out_dir.string().c_str());
+      std::printf("%s\n", profile_line(summary).c_str());
+    }
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nexdyn: error: %s\n", e.what());

@@ -8,11 +8,15 @@
 //   * pairs with no free vertex (all four Dirichlet-held, e.g. two triangles of one obstacle):
 //     nothing in the solve can move them, so they carry no force and no CCD limit.
 //
-// Broad phase: Embree BVHs over the primitives' boxes (bvh/broad_phase.hpp). A primitive's box
-// covers it at x0 and at x1, so by convexity it covers the primitive at every point of the
-// motion; inflated by r on every side, two boxes overlap whenever the primitives come within 2 r
-// of each other at some time in [0, 1]. Output lists are sorted and equal to the brute-force
-// reference whatever the number of threads.
+// Broad phase (candidates.cpp): Embree finds the pairs of bodies whose boxes overlap, then each
+// primitive queries a BoxTree (bvh/box_tree.hpp) of its own body and of the bodies next to it.
+// A primitive's box covers it at x0 and at x1, so by convexity it covers the primitive at every
+// point of the motion; inflated by r on every side, two boxes overlap whenever the primitives
+// come within 2 r of each other at some time in [0, 1]. Pairs within one body are boxed in the
+// body's co-moving frame (its mean displacement taken out of x1): distances within the body are
+// the same in that frame, and a body falling a long way no longer pairs every primitive with
+// every other one on its path. Output lists are sorted and equal to the brute-force reference
+// (same boxes, same frames) whatever the number of threads.
 #pragma once
 
 #include "bvh/broad_phase.hpp"

@@ -70,6 +70,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   for (int it = 0; it < settings.max_iterations; ++it) {
     potential_.prepare(x.data(), it == 0);
     if (potential_.pattern_version() != analyzed_version_) {
+      ProfileScope scope(profile_, StepPhase::linear_solve);
       analyze_pattern();
       ++result.analyses;
     }
@@ -80,13 +81,16 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it);
       return result;
     }
-    if (!cholmod_.factorize(values_.data())) {
-      result.status = StepStatus::factorization_failed;
-      result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
-                       cholmod_.error();
-      return result;
+    {
+      ProfileScope scope(profile_, StepPhase::linear_solve);
+      if (!cholmod_.factorize(values_.data())) {
+        result.status = StepStatus::factorization_failed;
+        result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
+                         cholmod_.error();
+        return result;
+      }
+      cholmod_.solve(grad_.data(), direction_.data());
     }
-    cholmod_.solve(grad_.data(), direction_.data());
     double max_step = 0.0, slope = 0.0;
     for (int64_t i = 0; i < n; ++i) {
       direction_[i] = -direction_[i];
@@ -109,16 +113,19 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       result.message = "continuous collision detection allows no motion along the Newton direction";
       return result;
     }
-    for (;;) {
-      for (int64_t i = 0; i < n; ++i) trial_[i] = x[i] + alpha * direction_[i];
-      trial_energy = potential_.energy(trial_.data());
-      if (trial_energy <= energy + kArmijo * alpha * slope + noise) break;
-      alpha *= 0.5;
-      if (alpha < kMinStepLength) {
-        result.status = StepStatus::line_search_failed;
-        result.message = format("line search found no decrease along the Newton direction "
-                                "(increment %.3g m/s, energy %.6g)", result.increment, energy);
-        return result;
+    {
+      ProfileScope scope(profile_, StepPhase::line_search);
+      for (;;) {
+        for (int64_t i = 0; i < n; ++i) trial_[i] = x[i] + alpha * direction_[i];
+        trial_energy = potential_.energy(trial_.data());
+        if (trial_energy <= energy + kArmijo * alpha * slope + noise) break;
+        alpha *= 0.5;
+        if (alpha < kMinStepLength) {
+          result.status = StepStatus::line_search_failed;
+          result.message = format("line search found no decrease along the Newton direction "
+                                  "(increment %.3g m/s, energy %.6g)", result.increment, energy);
+          return result;
+        }
       }
     }
     x.swap(trial_);

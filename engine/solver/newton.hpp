@@ -16,6 +16,7 @@
 #include "engine/model.hpp"
 #include "engine/solver/cholmod_solver.hpp"
 #include "engine/solver/step_status.hpp"
+#include "engine/step_profile.hpp"
 
 #include <string>
 #include <vector>
@@ -45,6 +46,9 @@ class NewtonSolver {
   // On success x is the minimiser; on failure x is the last accepted iterate.
   NewtonResult solve(std::vector<double>& x, const NewtonSettings& settings);
 
+  // Times the linear solves and line searches into `profile` (may be null: no timing).
+  void set_profile(StepProfile* profile) { profile_ = profile; }
+
  private:
   void eliminate_dirichlet(double* grad, double* values) const;
   // (Re)does the symbolic analysis and the Dirichlet bookkeeping for the potential's pattern.
@@ -53,6 +57,7 @@ class NewtonSolver {
   const Model& model_;
   IncrementalPotential& potential_;
   CholmodSolver cholmod_;
+  StepProfile* profile_ = nullptr;
   int64_t analyzed_version_ = -1;
   std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
   std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
