@@ -61,6 +61,7 @@ double IncrementalPotential::energy(const double* x) const {
 
 void IncrementalPotential::begin_solve(const double* x) {
   if (!contact_) return;
+  ProfileScope scope(profile_, StepPhase::barrier);
   contact_->find_candidates(x, nullptr);
   // Initial stiffness (IPC supplemental sec. 3) from the gradients of E / s without the barrier
   // and of the barrier sum, with the held DOFs left out: the kappa that best balances them.
@@ -99,6 +100,7 @@ void IncrementalPotential::begin_solve(const double* x) {
 
 void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   if (!contact_) return;
+  ProfileScope scope(profile_, StepPhase::barrier);
   contact_->assemble(x, contact_scale_ * kappa_, true);
   contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
 }
@@ -107,6 +109,7 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   const bool merge = contact_ != nullptr;
   const CscPattern& pattern = this->pattern();
   double* elastic_values = merge ? elastic_values_.data() : values;
+  ProfileScope elastic_scope(profile_, StepPhase::elastic);
   elastic_.gradient_hessian(x, grad, elastic_values);
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
@@ -117,7 +120,10 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
     for (int64_t k = begin; k < end; ++k) elastic_values[k] *= scale;
   }, 8192);
   // The contact slabs are already weighted by s_c kappa (prepare()).
-  if (merge) contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values);
+  if (merge) {
+    ProfileScope scope(profile_, StepPhase::barrier);
+    contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values);
+  }
   parallel_for(model_.num_vertices, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v)
       for (int d = 0; d < 3; ++d) {
@@ -126,7 +132,10 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
         values[pattern.diagonal[i]] += inertia * m[v];
       }
   }, 1024);
-  if (merge) contact_->add_gradient(grad);
+  if (merge) {
+    ProfileScope scope(profile_, StepPhase::barrier);
+    contact_->add_gradient(grad);
+  }
 }
 
 double IncrementalPotential::max_step(const double* x, const double* p) {
@@ -135,6 +144,7 @@ double IncrementalPotential::max_step(const double* x, const double* p) {
 
 void IncrementalPotential::remove_contact_acceleration(const double* x, std::vector<double>& a) {
   if (!contact_) return;
+  ProfileScope scope(profile_, StepPhase::barrier);
   // grad of s_c kappa B; update_implicit divided it by s (with a minus: a force).
   contact_->assemble(x, contact_scale_ * kappa_, false);
   std::vector<double>& grad = contact_gradient_;

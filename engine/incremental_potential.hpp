@@ -29,6 +29,7 @@
 #include "engine/elastic_assembly.hpp"
 #include "engine/model.hpp"
 #include "engine/solver/contact_pattern.hpp"
+#include "engine/step_profile.hpp"
 
 #include <memory>
 #include <vector>
@@ -47,6 +48,9 @@ class IncrementalPotential {
     contact_scale_ = contact_scale;
     inertia_ = inertia ? 1.0 : 0.0;
   }
+
+  // Times elastic and barrier assembly into `profile` (null: no timing).
+  void set_profile(StepProfile* profile) { profile_ = profile; }
 
   void begin_solve(const double* x);
   // E(x); +inf when x inverts a tet whose material forbids it or touches in a contact pair.
@@ -76,6 +80,7 @@ class IncrementalPotential {
   const Model& model_;
   ElasticAssembly& elastic_;
   BarrierPotential* contact_ = nullptr;
+  StepProfile* profile_ = nullptr;
   std::unique_ptr<ContactPattern> contact_pattern_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
   std::vector<double> contact_gradient_;  // (3n) workspace of remove_contact_acceleration

@@ -27,6 +27,8 @@ std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
 Simulation::Simulation(const Scene& scene)
     : scene_(scene), model_(scene.model), state_(scene.initial), elastic_(scene.model),
       contact_(make_contact(scene)), potential_(scene.model, elastic_, contact_.get()) {
+  potential_.set_profile(&profile_);
+  if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
   force_.resize(n);

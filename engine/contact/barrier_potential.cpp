@@ -116,6 +116,7 @@ BarrierPotential::BarrierPotential(const Model& model, double dhat)
 }
 
 void BarrierPotential::find_candidates(const double* x0, const double* x1) {
+  ProfileScope scope(profile_, StepPhase::broad_phase);
   find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
 }
 
@@ -671,6 +672,7 @@ void BarrierPotential::add_gradient(double* grad) const {
 // ---- CCD --------------------------------------------------------------------------------------
 
 double BarrierPotential::max_step(const double* x, const double* p) {
+  ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
   const int64_t n = model_.num_dofs();
   parallel_for(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x1_[i] = x[i] + p[i];

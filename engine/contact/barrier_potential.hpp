@@ -30,6 +30,7 @@
 
 #include "engine/contact/candidates.hpp"
 #include "engine/model.hpp"
+#include "engine/step_profile.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -46,6 +47,8 @@ class BarrierPotential {
   BarrierPotential(const Model& model, double dhat);
 
   double dhat() const { return dhat_; }
+  // Times the solver's candidate searches (broad phase) and CCD into `profile` (null: no timing).
+  void set_profile(StepProfile* profile) { profile_ = profile; }
 
   // Candidates for the motion x0 -> x1 (x1 = nullptr: for x0 alone).
   void find_candidates(const double* x0, const double* x1);
@@ -100,6 +103,7 @@ class BarrierPotential {
  private:
   const Model& model_;
   double dhat_ = 0.0, dhat2_ = 0.0;
+  StepProfile* profile_ = nullptr;
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
 
