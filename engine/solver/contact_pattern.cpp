@@ -104,18 +104,22 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
   block_value_.resize(block_begin_[num]);
   locate_blocks(stencils);
 
-  // The vertex pairs (J, I), I < J, of some stencil's blocks for which `keep` is true.
-  auto pairs_where = [&](auto&& keep) {
-    std::vector<std::pair<int32_t, int32_t>> pairs;
+  // Calls f(i, j, k) for every upper-triangle 3x3 block of every stencil: its vertices i <= j
+  // (i = -1 when one is absent or held) and its index k into block_value_.
+  auto for_each_block = [&](auto&& f) {
     for (int64_t s = 0; s < num; ++s) {
       const int32_t* v = &stencils[4 * s];
       int64_t k = block_begin_[s];
       for (int a = 0; a < stencil_size_[s]; ++a)
-        for (int b = a; b < stencil_size_[s]; ++b, ++k) {
-          const int32_t i = std::min(v[a], v[b]), j = std::max(v[a], v[b]);
-          if (i >= 0 && i != j && keep(i, j, block_value_[k])) pairs.emplace_back(j, i);
-        }
+        for (int b = a; b < stencil_size_[s]; ++b, ++k) f(std::min(v[a], v[b]), std::max(v[a], v[b]), k);
     }
+  };
+  // The vertex pairs (J, I), I < J, of some stencil's blocks for which `keep` is true.
+  auto pairs_where = [&](auto&& keep) {
+    std::vector<std::pair<int32_t, int32_t>> pairs;
+    for_each_block([&](int32_t i, int32_t j, int64_t k) {
+      if (i >= 0 && i != j && keep(i, j, block_value_[k])) pairs.emplace_back(j, i);
+    });
     std::sort(pairs.begin(), pairs.end());
     pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
     return pairs;
@@ -137,19 +141,13 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
     // Distinct contact (non-elastic) blocks in use, each counted once by its value index.
     seen_.assign(merged_.nnz() / 64 + 1, 0);
     int64_t used = 0;
-    for (int64_t s = 0; s < num; ++s) {
-      const int32_t* v = &stencils[4 * s];
-      int64_t k = block_begin_[s];
-      for (int a = 0; a < stencil_size_[s]; ++a)
-        for (int b = a; b < stencil_size_[s]; ++b, ++k) {
-          const int32_t i = std::min(v[a], v[b]), j = std::max(v[a], v[b]);
-          if (i < 0 || i == j || elastic_has(i, j)) continue;
-          uint64_t& word = seen_[block_value_[k] / 64];
-          const uint64_t bit = uint64_t{1} << (block_value_[k] % 64);
-          used += (word & bit) == 0;
-          word |= bit;
-        }
-    }
+    for_each_block([&](int32_t i, int32_t j, int64_t k) {
+      if (i < 0 || i == j || elastic_has(i, j)) return;
+      uint64_t& word = seen_[block_value_[k] / 64];
+      const uint64_t bit = uint64_t{1} << (block_value_[k] % 64);
+      used += (word & bit) == 0;
+      word |= bit;
+    });
     if (static_cast<int64_t>(contact_pairs_.size()) > 4 * used + 64) {
       rebuild(pairs_where([&](int32_t i, int32_t j, int64_t) { return !elastic_has(i, j); }));
       changed = true;

@@ -27,14 +27,6 @@ Scene small_scene(const std::string& model) {
   })", "assembly_" + model);
 }
 
-std::vector<double> perturbed(const Model& model, double amount, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-amount, amount);
-  std::vector<double> x = model.rest_positions;
-  for (double& xi : x) xi += u(rng);
-  return x;
-}
-
 }  // namespace
 
 TEST_CASE("sparse Hessian equals the dense sum of projected element Hessians") {
@@ -43,7 +35,7 @@ TEST_CASE("sparse Hessian equals the dense sum of projected element Hessians") {
     Scene scene = small_scene(std::string(material_model_name(mm)));
     const Model& model = scene.model;
     ElasticAssembly assembly(model);
-    const std::vector<double> x = perturbed(model, 0.02, 7);
+    const std::vector<double> x = test::perturbed(model.rest_positions, 0.02, 7);
     std::vector<double> grad(model.num_dofs()), values(assembly.pattern().nnz());
     assembly.gradient_hessian(x.data(), grad.data(), values.data());
 
@@ -79,9 +71,9 @@ TEST_CASE("incremental potential: gradient matches central differences of the en
   const Model& model = scene.model;
   ElasticAssembly assembly(model);
   IncrementalPotential potential(model, assembly);
-  const std::vector<double> x_tilde = perturbed(model, 0.01, 3);
+  const std::vector<double> x_tilde = test::perturbed(model.rest_positions, 0.01, 3);
   potential.begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
-  std::vector<double> x = perturbed(model, 0.02, 11);
+  std::vector<double> x = test::perturbed(model.rest_positions, 0.02, 11);
   std::vector<double> grad(model.num_dofs()), values(potential.pattern().nnz());
   potential.gradient_hessian(x.data(), grad.data(), values.data());
   const double h = 1e-6;
@@ -105,7 +97,7 @@ TEST_CASE("assembly is bitwise identical with 1 and 2 threads") {
     "bodies": [ { "box": { "size": [1, 1, 1], "cells": [12, 12, 12] }, "material": "a" } ]
   })", "threads");
   const Model& model = scene.model;
-  const std::vector<double> x = perturbed(model, 0.005, 5);
+  const std::vector<double> x = test::perturbed(model.rest_positions, 0.005, 5);
   auto evaluate = [&](int threads) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
     ElasticAssembly assembly(model);

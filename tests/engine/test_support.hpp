@@ -64,6 +64,15 @@ inline std::vector<std::string> read_lines(const std::filesystem::path& path) {
   return lines;
 }
 
+// x0 with every coordinate moved by a uniform random amount in [-amount, amount].
+inline std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amount, amount);
+  std::vector<double> x = x0;
+  for (double& xi : x) xi += u(rng);
+  return x;
+}
+
 // The path of a shipped scene.
 inline std::filesystem::path scene_path(const std::string& name) {
   return std::filesystem::path(NEXDYN_SOURCE_DIR) / "scenes" / name;

@@ -37,18 +37,10 @@ Scene many_bodies() {
   return scene;
 }
 
-std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-amount, amount);
-  std::vector<double> x = x0;
-  for (double& xi : x) xi += u(rng);
-  return x;
-}
-
 // x0 -> x1: every free body moves by its own large translation (the co-moving frame's case) and
 // jiggles; held vertices stay.
 std::vector<double> moved(const Model& model, const std::vector<double>& x0, unsigned seed) {
-  std::vector<double> x1 = perturbed(x0, 0.01, seed);
+  std::vector<double> x1 = test::perturbed(x0, 0.01, seed);
   std::mt19937 rng(seed + 7);
   std::uniform_real_distribution<double> u(-0.3, 0.3);
   std::vector<Eigen::Vector3d> shift(model.bodies.size());
@@ -78,7 +70,7 @@ bool contains(const std::vector<IndexPair>& sorted, const IndexPair& p) {
 TEST_CASE("contact candidates equal the brute force, static and swept, on 1 and 2 threads") {
   const Scene scene = many_bodies();
   const Model& model = scene.model;
-  const std::vector<double> x0 = perturbed(model.rest_positions, 1e-3, 1);
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 1);
   const std::vector<double> x1 = moved(model, x0, 2);
   for (const double* end : {static_cast<const double*>(nullptr), x1.data()}) {
     for (double inflation : {0.0, 0.005, 0.05}) {
@@ -114,7 +106,7 @@ TEST_CASE("a swept candidate list holds every pair close at some time of the mot
   // motion and check that each pair close at a sample is in the swept list.
   const Scene scene = many_bodies();
   const Model& model = scene.model;
-  const std::vector<double> x0 = perturbed(model.rest_positions, 1e-3, 3);
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 3);
   const std::vector<double> x1 = moved(model, x0, 4);
   constexpr double r = 0.005;
   ContactCandidates swept;

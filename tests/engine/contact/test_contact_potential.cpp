@@ -44,18 +44,28 @@ Scene two_boxes() {
   return scene;
 }
 
-std::vector<double> perturbed(const std::vector<double>& x0, double amount, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-amount, amount);
-  std::vector<double> x = x0;
-  for (double& xi : x) xi += u(rng);
-  return x;
-}
-
 constexpr double kDhat = 0.05;
 
 // Vertices n of a stencil from its 3n x 3n slab size.
 int64_t test_stencil_size(int64_t slab_size) { return std::lround(std::sqrt(double(slab_size))) / 3; }
+
+// H += every contact slab of the last compute_derivatives(), at its vertices' rows and columns
+// (absent and held vertices, -1, skipped).
+void add_contact_slabs(const BarrierPotential& contact, Eigen::MatrixXd& H) {
+  const std::vector<int32_t>& st = contact.stencils();
+  const std::vector<int64_t>& begin = contact.slab_begin();
+  const std::vector<double>& slabs = contact.local_hessians();
+  for (int64_t k = 0; k < contact.num_stencils(); ++k) {
+    const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
+    for (int a = 0; a < size; ++a)
+      for (int b = 0; b < size; ++b) {
+        if (st[4 * k + a] < 0 || st[4 * k + b] < 0) continue;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
+      }
+  }
+}
 
 }  // namespace
 
@@ -65,8 +75,8 @@ TEST_CASE("incremental potential gradient with contact matches finite difference
   ElasticAssembly elastic(model);
   BarrierPotential contact(model, kDhat);
   IncrementalPotential potential(model, elastic, &contact);
-  const std::vector<double> x = perturbed(model.rest_positions, 2e-3, 3);
-  const std::vector<double> x_tilde = perturbed(x, 1e-2, 4);
+  const std::vector<double> x = test::perturbed(model.rest_positions, 2e-3, 3);
+  const std::vector<double> x_tilde = test::perturbed(x, 1e-2, 4);
   potential.begin_step(x_tilde, 1e-4, 2e-4, true);
   potential.begin_solve(x.data());
   potential.prepare(x.data(), true);
@@ -94,8 +104,8 @@ TEST_CASE("incremental potential gradient with contact matches finite difference
 TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 threads") {
   const Scene scene = two_boxes();
   const Model& model = scene.model;
-  const std::vector<double> x = perturbed(model.rest_positions, 2e-3, 5);
-  const std::vector<double> x_tilde = perturbed(x, 1e-2, 6);
+  const std::vector<double> x = test::perturbed(model.rest_positions, 2e-3, 5);
+  const std::vector<double> x_tilde = test::perturbed(x, 1e-2, 6);
   const double scale = 1e-4;
 
   auto assemble = [&](int threads, std::vector<double>& grad, std::vector<double>& values,
@@ -117,24 +127,14 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     Eigen::MatrixXd H = scale * test::dense_from(elastic.pattern(), evalues);
     for (int32_t v = 0; v < model.num_vertices; ++v)
       for (int d = 0; d < 3; ++d) H(3 * v + d, 3 * v + d) += model.mass[v];
-    const std::vector<int32_t>& st = contact.stencils();
-    const std::vector<int64_t>& begin = contact.slab_begin();
-    const std::vector<double>& slabs = contact.local_hessians();
-    for (int64_t k = 0; k < contact.num_stencils(); ++k) {
-      const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
-      for (int a = 0; a < size; ++a)
-        for (int b = 0; b < size; ++b) {
-          if (st[4 * k + a] < 0 || st[4 * k + b] < 0) continue;
-          for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c)
-              H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
-        }
-    }
+    add_contact_slabs(contact, H);
     *reference = H;
     CHECK(potential.pattern().nnz() > elastic.pattern().nnz());  // contact added blocks
     const Eigen::MatrixXd assembled = test::dense_from(potential.pattern(), values);
     CHECK((assembled - H).cwiseAbs().maxCoeff() <= 1e-12 * H.cwiseAbs().maxCoeff());
     // Every contact slab is symmetric PSD after projection.
+    const std::vector<int64_t>& begin = contact.slab_begin();
+    const std::vector<double>& slabs = contact.local_hessians();
     for (int64_t k = 0; k < contact.num_stencils(); ++k) {
       const int64_t n = 3 * test_stencil_size(begin[k + 1] - begin[k]);
       const Eigen::Map<const Eigen::MatrixXd> S(&slabs[begin[k]], n, n);
@@ -249,7 +249,7 @@ TEST_CASE("merging equal closest features changes no energy, gradient or Hessian
   // the closest feature of the same pairs, at distances that differ per feature).
   for (const double amount : {0.0, 1e-4}) {
     CAPTURE(amount);
-    const std::vector<double> x = perturbed(model.rest_positions, amount, 11);
+    const std::vector<double> x = test::perturbed(model.rest_positions, amount, 11);
     BarrierPotential contact(model, dhat);
     contact.find_candidates(x.data(), nullptr);
     contact.assemble(x.data(), 1.0, true);
@@ -277,17 +277,7 @@ TEST_CASE("merging equal closest features changes no energy, gradient or Hessian
     CHECK((grad - grad_ref).cwiseAbs().maxCoeff() <= 1e-12 * grad_ref.cwiseAbs().maxCoeff());
 
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
-    const std::vector<int32_t>& st = contact.stencils();
-    const std::vector<int64_t>& begin = contact.slab_begin();
-    const std::vector<double>& slabs = contact.local_hessians();
-    for (int64_t k = 0; k < contact.num_stencils(); ++k) {
-      const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
-      for (int a = 0; a < size; ++a)
-        for (int b = 0; b < size; ++b)
-          for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c)
-              H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
-    }
+    add_contact_slabs(contact, H);
     CHECK(H_ref.cwiseAbs().maxCoeff() > 0.0);
     CHECK((H - H_ref).cwiseAbs().maxCoeff() <= 1e-12 * H_ref.cwiseAbs().maxCoeff());
   }
