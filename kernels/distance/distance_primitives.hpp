@@ -40,6 +40,16 @@ using Matrix12d = Eigen::Matrix<double, 12, 12>;
 
 namespace detail {
 
+// Ties between closest features. A closest point whose parameter (barycentric coordinate, edge
+// parameter) is within kFeatureTie of a lower-dimensional feature is classified as that feature:
+// a point exactly over a triangle's corner is a point-point contact, not a point-plane one. Exact
+// ties are common (bodies stacked on grids), and rounding puts the computed parameter a few ulp
+// to either side, so without the margin the same contact would be classified at random. The
+// squared distance changes by at most (kFeatureTie L)^2, and only the one-sided second
+// derivative used at the tie changes; point-point and point-edge contacts can then be merged
+// (engine/contact/barrier_potential.cpp).
+inline constexpr double kFeatureTie = 1e-12;
+
 // Minimiser of |X (w0 + B lambda)|^2 over lambda, and the pieces its derivatives need.
 template <int K, int M>
 struct AffineMinimum {

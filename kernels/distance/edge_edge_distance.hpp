@@ -49,7 +49,8 @@ inline EdgeEdgeCase edge_edge_case(const Eigen::Vector3d& ea0, const Eigen::Vect
     // Stationarity: a s - b t + d = 0, -b s + c t - e = 0.
     const double s = (b * e - c * d) / det;
     const double t = (a * e - b * d) / det;
-    if (s > 0.0 && s < 1.0 && t > 0.0 && t < 1.0) return EdgeEdgeCase::ea_eb;
+    constexpr double tie = detail::kFeatureTie;
+    if (s > tie && s < 1.0 - tie && t > tie && t < 1.0 - tie) return EdgeEdgeCase::ea_eb;
   }
   // Boundary of the parameter square: four point-segment problems; ties keep the first.
   const PointEdgeCase c0 = point_edge_case(ea0, eb0, eb1);

@@ -15,14 +15,15 @@ enum class PointEdgeCase : uint8_t { p_e0, p_e1, p_e };
 
 // Closest feature of the segment [e0, e1] to p, from the parameter of the foot of the
 // perpendicular, s = (p - e0) . e / |e|^2, compared without dividing (no NaN for e0 == e1).
+// Within detail::kFeatureTie of an end, the end is the closest feature.
 inline PointEdgeCase point_edge_case(const Eigen::Vector3d& p, const Eigen::Vector3d& e0,
                                      const Eigen::Vector3d& e1) {
   const Eigen::Vector3d e = e1 - e0;
   const double l2 = e.squaredNorm();
   if (!(l2 > 0.0)) return PointEdgeCase::p_e0;
   const double s_l2 = (p - e0).dot(e);
-  if (s_l2 <= 0.0) return PointEdgeCase::p_e0;
-  if (s_l2 >= l2) return PointEdgeCase::p_e1;
+  if (s_l2 <= detail::kFeatureTie * l2) return PointEdgeCase::p_e0;
+  if (s_l2 >= (1.0 - detail::kFeatureTie) * l2) return PointEdgeCase::p_e1;
   return PointEdgeCase::p_e;
 }
 

@@ -4,10 +4,11 @@
 // e0 = (t0, t1), e1 = (t1, t2), e2 = (t2, t0).
 //
 // Classification: |p - (t0 + u e_1 + v e_2)|^2 is a convex quadratic in (u, v). If its
-// unconstrained minimiser (the projection onto the plane) lies in the closed triangle, the plane
-// is the closest feature. Otherwise the constrained minimum lies on the triangle's boundary, so it
-// is the smallest of the three point-segment distances, each classified by point_edge_case. This
-// needs no Voronoi-region table and handles degenerate (collinear) triangles by skipping the plane.
+// unconstrained minimiser (the projection onto the plane) lies inside the triangle (more than
+// detail::kFeatureTie from its boundary in barycentric terms), the plane is the closest feature.
+// Otherwise the constrained minimum lies on the triangle's boundary, so it is the smallest of the
+// three point-segment distances, each classified by point_edge_case. This needs no Voronoi-region
+// table and handles degenerate (collinear) triangles by skipping the plane.
 #pragma once
 
 #include "kernels/distance/distance_primitives.hpp"
@@ -41,7 +42,8 @@ inline PointTriangleCase point_triangle_case(const Eigen::Vector3d& p, const Eig
     const double d2 = e2.dot(r);
     const double u = (c * d1 - b * d2) / det;
     const double v = (a * d2 - b * d1) / det;
-    if (u >= 0.0 && v >= 0.0 && u + v <= 1.0) return PointTriangleCase::p_t;
+    constexpr double tie = detail::kFeatureTie;
+    if (u > tie && v > tie && u + v < 1.0 - tie) return PointTriangleCase::p_t;
   }
   // Boundary: the closest of the three edges; ties keep the first (the distances are equal).
   const PointEdgeCase c0 = point_edge_case(p, t0, t1);

@@ -363,6 +363,33 @@ TEST_CASE("distance: point-triangle constructed inputs land in every case") {
   }
 }
 
+// A point over a corner or an edge of a triangle in general position is only over it up to
+// rounding; the classification must still name the corner or the edge (kFeatureTie), every time,
+// so that such contacts merge. Also checked: points clearly inside stay inside.
+TEST_CASE("distance: point-triangle ties go to the corner or edge under the point") {
+  std::mt19937_64 rng(17);
+  constexpr PointTriangleCase corner[3] = {PointTriangleCase::p_t0, PointTriangleCase::p_t1,
+                                           PointTriangleCase::p_t2};
+  constexpr PointTriangleCase edge[3] = {PointTriangleCase::p_e0, PointTriangleCase::p_e1,
+                                         PointTriangleCase::p_e2};
+  int checked = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Vec3 t[3] = {random_point(rng), random_point(rng), random_point(rng)};
+    if (gram_condition(t[1] - t[0], t[2] - t[0]) > 200.0) continue;
+    const Vec3 n = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+    const double h = 0.01 * (1 + trial % 7);
+    for (int k = 0; k < 3; ++k) {
+      CHECK(point_triangle_case(t[k] + h * n, t[0], t[1], t[2]) == corner[k]);
+      const Vec3 mid = 0.5 * (t[k] + t[(k + 1) % 3]);
+      CHECK(point_triangle_case(mid + h * n, t[0], t[1], t[2]) == edge[k]);
+    }
+    const Vec3 centroid = (t[0] + t[1] + t[2]) / 3.0;
+    CHECK(point_triangle_case(centroid + h * n, t[0], t[1], t[2]) == PointTriangleCase::p_t);
+    ++checked;
+  }
+  CHECK(checked > 500);
+}
+
 TEST_CASE("distance: point-triangle per-case derivatives and brute-force values") {
   std::mt19937_64 rng(5);
   int count[7] = {};
