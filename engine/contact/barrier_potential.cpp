@@ -26,6 +26,10 @@ constexpr int64_t kPairGrain = 256;
 // distance): far enough from 0 that the barrier stays finite, close enough not to stall.
 constexpr double kCcdGapFraction = 0.1;
 
+// A stencil Hessian whose eigenvalues are all above -kPsdTolerance times its largest diagonal
+// entry counts as PSD and is kept unprojected (cholesky_psd_test).
+constexpr double kPsdTolerance = 1e-12;
+
 Eigen::Vector3d point(const double* x, int32_t v) { return Eigen::Vector3d::Map(x + 3 * int64_t{v}); }
 
 // The closest feature of a pair within its 4-point stencil: the squared distance is a
@@ -531,6 +535,9 @@ void project_psd_translation_free(Matrix12d& H) {
   const Eigen::Matrix<double, 9, 12> UtH = U.transpose().lazyProduct(H);
   Matrix9d T = UtH.lazyProduct(U);
   T = 0.5 * (T + T.transpose()).eval();
+  // Already PSD, as exactly parallel edges are (their Hessian is b m' J^T J there): H keeps its
+  // values, without an eigendecomposition.
+  if (cholesky_psd_test<9>(T, kPsdTolerance)) return;
   if (project_psd<9>(T) == 0) return;  // nothing clamped: H keeps its exact values
   const Eigen::Matrix<double, 12, 9> UT = U.lazyProduct(T);
   const Matrix12d projected = UT.lazyProduct(U.transpose());

@@ -68,6 +68,33 @@ double min_eigenvalue(const Eigen::Matrix<double, N, N>& A) {
   }
 }
 
+// True when the symmetric matrix A shifted by shift = rel_tol * max_i A_ii has a Cholesky factor,
+// so that (up to the rounding of the factorisation) no eigenvalue of A is below -shift. A cheap
+// test, N^3 / 6 multiply-adds instead of an eigendecomposition, for callers whose matrices are
+// often PSD already: such a matrix can be kept as it is.
+template <int N>
+bool cholesky_psd_test(const Eigen::Matrix<double, N, N>& A, double rel_tol) {
+  double max_diagonal = 0.0;
+  for (int i = 0; i < N; ++i) max_diagonal = std::max(max_diagonal, A(i, i));
+  const double shift = rel_tol * max_diagonal;
+  if (!(shift > 0.0)) return false;  // no positive diagonal, or NaN: leave it to the projection
+  // Column-oriented Cholesky of A + shift I into the lower triangle of L.
+  Eigen::Matrix<double, N, N> L;
+  for (int j = 0; j < N; ++j) {
+    double pivot = A(j, j) + shift;
+    for (int k = 0; k < j; ++k) pivot -= L(j, k) * L(j, k);
+    if (!(pivot > 0.0)) return false;
+    const double root = std::sqrt(pivot);
+    L(j, j) = root;
+    for (int i = j + 1; i < N; ++i) {
+      double value = A(i, j);
+      for (int k = 0; k < j; ++k) value -= L(i, k) * L(j, k);
+      L(i, j) = value / root;
+    }
+  }
+  return true;
+}
+
 // True when every eigenvalue of the symmetric matrix A is >= -rel_tol * max|eigenvalue|.
 template <int N>
 bool is_psd(const Eigen::Matrix<double, N, N>& A, double rel_tol = 1e-10) {

@@ -139,6 +139,28 @@ TEST_CASE("projection: project_psd clamps negative eigenvalues (3x3, 6x6, 9x9, 1
   }
 }
 
+// The cheap pre-test must accept singular PSD matrices (rank-3 J^T J, as exactly parallel edges
+// give) and reject any matrix with an eigenvalue clearly below -rel_tol * max diagonal.
+TEST_CASE("projection: cholesky_psd_test accepts singular PSD and rejects negative eigenvalues") {
+  std::mt19937_64 rng(18);
+  using Matrix9 = Eigen::Matrix<double, 9, 9>;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Matrix<double, 3, 9> J = random_symmetric<9>(rng).topRows<3>();
+    const Matrix9 A = J.transpose() * J;  // rank 3: six zero eigenvalues, up to rounding
+    CHECK(cholesky_psd_test<9>(A, 1e-12));
+    // One eigenvector direction pushed below zero by 1e-8 of the scale: rejected.
+    const Eigen::SelfAdjointEigenSolver<Matrix9> eig(A);
+    const Eigen::Matrix<double, 9, 1> v = eig.eigenvectors().col(0);  // a null vector of A
+    const Matrix9 B = A - 1e-8 * A.diagonal().maxCoeff() * v * v.transpose();
+    CHECK_FALSE(cholesky_psd_test<9>(B, 1e-12));
+    // Generic random symmetric matrices are indefinite: rejected exactly when Eigen finds a
+    // negative eigenvalue of any size beyond the tolerance.
+    const Matrix9 C = random_symmetric<9>(rng);
+    const double lowest = Eigen::SelfAdjointEigenSolver<Matrix9>(C).eigenvalues()[0];
+    if (std::abs(lowest) > 1e-6) CHECK(cholesky_psd_test<9>(C, 1e-12) == (lowest > 0.0));
+  }
+}
+
 TEST_CASE("projection: project_psd with a positive eigenvalue floor") {
   std::mt19937_64 rng(15);
   Eigen::Matrix3d A = symmetric_with_spectrum(rng, {-2.0, 0.5, 3.0});
