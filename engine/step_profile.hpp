@@ -20,14 +20,17 @@ enum class StepPhase : uint8_t {
   ccd,            // narrow-phase CCD of the line search's step bound
   barrier,        // contact active set, derivatives and their merge into the Newton matrix
   elastic,        // elastic gradient and Hessian
-  linear_solve,   // CHOLMOD analysis, factorisation and solve
+  analysis,       // CHOLMOD symbolic analysis (ordering), when the matrix pattern changed
+  factorization,  // CHOLMOD numeric factorisation
+  solve,          // triangular solves for the Newton direction
   line_search,    // energy evaluations at trial points
   measure,        // stats.csv columns (energies, contact summary)
   count
 };
 
 inline constexpr std::array<const char*, static_cast<size_t>(StepPhase::count)> kStepPhaseNames = {
-    "broad phase", "CCD", "barrier", "elastic", "linear solve", "line search", "measure"};
+    "broad phase", "CCD",   "barrier",     "elastic", "analysis",
+    "factorisation", "solve", "line search", "measure"};
 
 class StepProfile {
  public:

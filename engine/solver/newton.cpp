@@ -70,7 +70,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   for (int it = 0; it < settings.max_iterations; ++it) {
     potential_.prepare(x.data(), it == 0);
     if (potential_.pattern_version() != analyzed_version_) {
-      ProfileScope scope(profile_, StepPhase::linear_solve);
+      ProfileScope scope(profile_, StepPhase::analysis);
       analyze_pattern();
       ++result.analyses;
     }
@@ -82,13 +82,16 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       return result;
     }
     {
-      ProfileScope scope(profile_, StepPhase::linear_solve);
+      ProfileScope scope(profile_, StepPhase::factorization);
       if (!cholmod_.factorize(values_.data())) {
         result.status = StepStatus::factorization_failed;
         result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
                          cholmod_.error();
         return result;
       }
+    }
+    {
+      ProfileScope scope(profile_, StepPhase::solve);
       cholmod_.solve(grad_.data(), direction_.data());
     }
     double max_step = 0.0, slope = 0.0;
