@@ -17,8 +17,19 @@ TetRange tet_range(const Model& m, const double* x) {
 }
 }  // namespace
 
-ElasticAssembly::ElasticAssembly(const Model& model)
-    : model_(model), pattern_(build_tet_hessian_pattern(model.num_vertices, model.tets)) {
+namespace {
+std::vector<int32_t> concatenated(const std::vector<int32_t>& a, const std::vector<int32_t>& b) {
+  std::vector<int32_t> out(a);
+  out.insert(out.end(), b.begin(), b.end());
+  return out;
+}
+}  // namespace
+
+ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups)
+    : model_(model),
+      pattern_(build_tet_hessian_pattern(model.num_vertices, coupling_groups.empty()
+                                                                 ? model.tets
+                                                                 : concatenated(model.tets, coupling_groups))) {
   const int64_t nv = model.num_vertices, nt = model.num_tets;
   corner_ptr_.assign(nv + 1, 0);
   for (int64_t c = 0; c < 4 * nt; ++c) ++corner_ptr_[model.tets[c] + 1];
@@ -28,6 +39,7 @@ ElasticAssembly::ElasticAssembly(const Model& model)
   for (int64_t c = 0; c < 4 * nt; ++c) corners_[fill[model.tets[c]]++] = c;
   tet_energy_.resize(nt);
   tet_gradient_.resize(12 * nt);
+  num_groups_ = static_cast<int64_t>(coupling_groups.size() / 4);
 }
 
 double ElasticAssembly::energy(const double* x) const {
@@ -79,7 +91,7 @@ double ElasticAssembly::energy_gradient(const double* x, double* grad) {
 }
 
 void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* hessian_values) {
-  if (tet_hessian_.empty()) tet_hessian_.resize(144 * size_t(model_.num_tets));
+  allocate_hessian_slabs();
   const TetRange range = tet_range(model_, x);
   for (const MaterialBatch& batch : model_.material_batches) {
     const Material& mat = model_.materials[batch.material];

@@ -15,7 +15,10 @@ namespace nexdyn {
 
 class ElasticAssembly {
  public:
-  explicit ElasticAssembly(const Model& model);
+  // coupling_groups: (num_groups x 4) vertex ids of extra constant Hessian terms that are not
+  // tets (joints, engine/joints.hpp). Their vertex pairs are in pattern(), and their 12x12 slabs
+  // (coupling_slabs(), zero until written) are added to every gradient_hessian().
+  explicit ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups = {});
 
   // Total elastic energy at positions x (3n); +inf when a neo-Hookean tet is inverted.
   double energy(const double* x) const;
@@ -25,18 +28,30 @@ class ElasticAssembly {
   void gradient_hessian(const double* x, double* grad, double* hessian_values);
 
   const HessianPattern& pattern() const { return pattern_; }
+  // (num_groups x 144) column-major 12x12 slabs of the coupling groups.
+  double* coupling_slabs() {
+    allocate_hessian_slabs();
+    return tet_hessian_.data() + 144 * int64_t{model_.num_tets};
+  }
 
  private:
   void gather_gradient(double* grad) const;
+  // The Hessian slabs exist once a Hessian or a coupling slab is asked for (1.2 KB per tet that
+  // energy-only users, such as explicit schemes, never pay).
+  void allocate_hessian_slabs() {
+    if (tet_hessian_.empty()) tet_hessian_.assign(144 * (int64_t{model_.num_tets} + num_groups_), 0.0);
+  }
   double sum_tet_energies() const;
 
   const Model& model_;
   HessianPattern pattern_;
+  int64_t num_groups_ = 0;               // coupling groups
   std::vector<int64_t> corner_ptr_;      // (num_vertices + 1) CSR: vertex -> its tet corners
   std::vector<int64_t> corners_;         // (4 num_tets) tet * 4 + corner, increasing per vertex
   std::vector<double> tet_energy_;       // (num_tets) slab
   std::vector<double> tet_gradient_;     // (num_tets x 12) slab
-  std::vector<double> tet_hessian_;      // (num_tets x 144) slab, column-major 12x12
+  std::vector<double> tet_hessian_;      // ((num_tets + num_groups) x 144) slab, column-major
+                                         // 12x12: the tets', then the coupling groups'
 };
 
 }  // namespace nexdyn

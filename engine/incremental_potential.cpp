@@ -12,8 +12,8 @@
 namespace nexdyn {
 
 IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic,
-                                           BarrierPotential* contact)
-    : model_(model), elastic_(elastic), contact_(contact) {
+                                           BarrierPotential* contact, const JointSet* joints)
+    : model_(model), elastic_(elastic), contact_(contact), joints_(joints) {
   if (!contact_) return;
   contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern());
   elastic_values_.resize(elastic_.pattern().nnz());
@@ -56,7 +56,8 @@ double IncrementalPotential::energy(const double* x) const {
     barrier = contact_->energy(x);
     if (!std::isfinite(barrier)) return std::numeric_limits<double>::infinity();
   }
-  return inertia_gravity_energy(x) + scale_ * elastic + contact_scale_ * kappa_ * barrier;
+  const double joints = joints_ ? joints_->energy(x) : 0.0;
+  return inertia_gravity_energy(x) + scale_ * (elastic + joints) + contact_scale_ * kappa_ * barrier;
 }
 
 void IncrementalPotential::begin_solve(const double* x) {
@@ -68,6 +69,7 @@ void IncrementalPotential::begin_solve(const double* x) {
   const int64_t n = model_.num_dofs();
   Eigen::VectorXd grad_energy(n), grad_barrier = Eigen::VectorXd::Zero(n);
   elastic_.energy_gradient(x, grad_energy.data());
+  if (joints_) joints_->add_gradient(x, grad_energy.data());
   const double* xt = x_tilde_->data();
   for (int32_t v = 0; v < model_.num_vertices; ++v)
     for (int d = 0; d < 3; ++d) {
@@ -110,7 +112,8 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   const CscPattern& pattern = this->pattern();
   double* elastic_values = merge ? elastic_values_.data() : values;
   ProfileScope elastic_scope(profile_, StepPhase::elastic);
-  elastic_.gradient_hessian(x, grad, elastic_values);
+  elastic_.gradient_hessian(x, grad, elastic_values);  // joints' Hessian included (coupling slabs)
+  if (joints_) joints_->add_gradient(x, grad);
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
@@ -143,13 +146,22 @@ double IncrementalPotential::max_step(const double* x, const double* p) {
 }
 
 void IncrementalPotential::remove_contact_acceleration(const double* x, std::vector<double>& a) {
-  if (!contact_) return;
+  if (!contact_ && !joints_) return;
   ProfileScope scope(profile_, StepPhase::barrier);
-  // grad of s_c kappa B; update_implicit divided it by s (with a minus: a force).
-  contact_->assemble(x, contact_scale_ * kappa_, false);
+  // grad of s_c kappa B and of s w Phi_joints = s_c Phi_joints; update_implicit divided them by
+  // s (with a minus: a force).
   std::vector<double>& grad = contact_gradient_;
   grad.assign(model_.num_dofs(), 0.0);
-  contact_->add_gradient(grad.data());
+  if (contact_) {
+    contact_->assemble(x, contact_scale_ * kappa_, false);
+    contact_->add_gradient(grad.data());
+  }
+  if (joints_) {
+    std::vector<double>& joint_grad = joint_gradient_;
+    joint_grad.assign(model_.num_dofs(), 0.0);
+    joints_->add_gradient(x, joint_grad.data());
+    for (int64_t i = 0; i < model_.num_dofs(); ++i) grad[i] += scale_ * joint_grad[i];
+  }
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
     for (int d = 0; d < 3; ++d) a[3 * v + d] += grad[3 * v + d] / (scale_ * model_.mass[v]);

@@ -61,6 +61,23 @@ struct DirichletMotion {
   double angular_velocity = 0.0;                       // [rad/s] about axis (right-hand rule)
 };
 
+// A joint (DESIGN.md section 5, "joints"; issue 4). Its constraint is linear in the positions:
+//   c(x) = sum_k coefficient[k] x[vertex[k]] + offset = 0   (3 equations).
+// A joint point is carried by a tet of its body with fixed barycentric weights w (extrapolated
+// when the point lies outside the tet). A pin holds it at its start position: the first 4 terms
+// are +w and offset = -point. A ball joint holds the two bodies' copies together: +w of the first
+// body's tet, then -w of the second's, and offset = 0.
+enum class JointType : uint8_t { pin, ball };
+
+struct Joint {
+  JointType type = JointType::pin;
+  int count = 4;                    // terms: 4 (pin) or 8 (ball)
+  int32_t vertex[8] = {};           // tet corners
+  double coefficient[8] = {};       // +w, then -w
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  // [m]
+  int32_t scene_entry = 0;          // index of its "joints" entry
+};
+
 struct Model {
   // ---- per vertex (num_vertices) -----------------------------------------------------------
   int32_t num_vertices = 0;
@@ -90,6 +107,7 @@ struct Model {
   std::vector<DirichletMotion> dirichlet_motions;  // one per "boundary" entry, then one shared
                                                    // fixed motion for obstacle meshes
   std::vector<ObstaclePlane> obstacle_planes;
+  std::vector<Joint> joints;
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);  // [m/s^2]
 
   int64_t num_dofs() const { return 3 * int64_t{num_vertices}; }

@@ -23,7 +23,12 @@ std::string stats_row(const StepStats& s) {
                 s.gravity_energy, s.barrier_energy, s.total_energy, s.momentum.x(), s.momentum.y(),
                 s.momentum.z(), s.newton_iterations, static_cast<long long>(s.contacts),
                 s.min_distance, s.wall_seconds);
-  return buf;
+  std::string row = buf;
+  if (s.joint_violation) {
+    std::snprintf(buf, sizeof(buf), ",%.17g", *s.joint_violation);
+    row += buf;
+  }
+  return row;
 }
 
 namespace {
@@ -106,7 +111,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   const fs::path partial = out / "stats.partial.csv";
   std::ofstream stats(partial, std::ios::trunc);
   if (!stats) throw std::runtime_error(partial.string() + ": cannot open for writing");
-  stats << kStatsHeader << '\n';
+  stats << kStatsHeader << (scene.model.joints.empty() ? "" : ",joint_violation") << '\n';
 
   Simulation simulation(scene);
   std::vector<std::pair<double, std::string>> pvd_frames;

@@ -4,6 +4,7 @@
 #include "engine/parallel.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 
 #include <chrono>
 #include <cmath>
@@ -18,6 +19,16 @@ double resolved_dhat(const Scene& scene) {
 }
 
 namespace {
+// Joints: the augmented Lagrangian's stiffness relative to the inertia of the joint's vertices
+// (JointSet::set_stiffness), the default tolerance relative to the bodies' bounding-box
+// diagonal, the number of multiplier updates per step before the step goes on regardless (the
+// violation is in stats.csv), and the stiffening when an update gains less than 4x.
+constexpr double kJointStiffnessRatio = 1e4;
+constexpr double kDefaultJointTolerance = 1e-9;
+constexpr int kMaxJointRounds = 30;
+constexpr double kJointStiffening = 4.0;
+constexpr double kMaxJointStiffening = 1e3;  // over the whole run: k stays conditioned
+
 std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
   if (!scene.contact.enabled) return nullptr;
   return std::make_unique<BarrierPotential>(scene.model, resolved_dhat(scene));
@@ -25,8 +36,9 @@ std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
 }  // namespace
 
 Simulation::Simulation(const Scene& scene)
-    : scene_(scene), model_(scene.model), state_(scene.initial), elastic_(scene.model),
-      contact_(make_contact(scene)), potential_(scene.model, elastic_, contact_.get()) {
+    : scene_(scene), model_(scene.model), state_(scene.initial), joints_(scene.model),
+      elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
+      potential_(scene.model, elastic_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
   potential_.set_profile(&profile_);
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
@@ -40,6 +52,12 @@ Simulation::Simulation(const Scene& scene)
   if (scene.time.consistent_initial_acceleration && !scene.time.integrator.is_static) {
     if (!explicit_acceleration(state_.x, state_.a))
       throw SceneError(scene.file.string() + ": the initial state has non-finite forces (inverted tet?)");
+    if (!joints_.empty()) constrain_initial_acceleration();
+  }
+  if (!joints_.empty()) {
+    joint_tolerance_ = scene.solver.joint_tolerance > 0.0
+                           ? scene.solver.joint_tolerance
+                           : kDefaultJointTolerance * std::max(bodies_bbox_diagonal(model_), 1e-3);
   }
   if (scene.time.integrator.is_static) {
     std::fill(state_.v.begin(), state_.v.end(), 0.0);
@@ -108,9 +126,7 @@ StepOutcome Simulation::step() {
                           !integrator.is_static);
     outcome = start_point(t_next);
     if (outcome.status != StepStatus::ok) return outcome;
-    NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
-    const NewtonResult result = newton_->solve(x_next_, settings);
-    iterations = result.iterations;
+    const NewtonResult result = solve_step(iterations);
     if (result.status != StepStatus::ok) {
       outcome = {result.status, result.message};
       return outcome;
@@ -137,6 +153,71 @@ StepOutcome Simulation::step() {
   }
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return outcome;
+}
+
+NewtonResult Simulation::solve_step(int& iterations) {
+  const double dt = scene_.time.dt;
+  const NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
+  if (!joints_.empty() && !joint_stiffness_set_) {
+    // The potential scale is fixed for a run (dt and the scheme do not change).
+    const IntegratorParams& integrator = scene_.time.integrator;
+    joints_.set_weight(integrator.is_static ? 1.0 : 1.0 / integrator.gamma);
+    joints_.set_stiffness(integrator.potential_scale(dt), kJointStiffnessRatio,
+                          elastic_.coupling_slabs());
+    joint_stiffness_set_ = true;
+  }
+  NewtonResult result = newton_->solve(x_next_, settings);
+  iterations += result.iterations;
+  // A multiplier update moves the minimiser by about the violation; Newton must not call that
+  // converged before taking it, so the rounds use a tolerance well below the joint tolerance.
+  NewtonSettings round_settings = settings;
+  round_settings.tolerance = std::min(settings.tolerance, 0.1 * joint_tolerance_ / dt);
+  double previous = std::numeric_limits<double>::infinity();
+  for (int round = 0; !joints_.empty() && result.status == StepStatus::ok && round < kMaxJointRounds; ++round) {
+    const double violation = joints_.max_violation(x_next_.data());
+    if (violation <= joint_tolerance_) break;
+    joints_.update_multipliers(x_next_.data());
+    if (violation > previous / kJointStiffening && joint_stiffening_ < kMaxJointStiffening) {
+      joints_.stiffen(kJointStiffening, elastic_.coupling_slabs());
+      joint_stiffening_ *= kJointStiffening;
+    }
+    previous = violation;
+    result = newton_->solve(x_next_, round_settings);
+    iterations += result.iterations;
+  }
+  return result;
+}
+
+void Simulation::constrain_initial_acceleration() {
+  // a = M^-1 (f - J^T mu) on free vertices with J a = 0 (J is constant: c is linear), so
+  // (J M^-1 J^T) mu = J a_f, a_f = the unconstrained acceleration (held vertices keep theirs).
+  const int64_t m = 3 * joints_.size();
+  const int64_t n = model_.num_dofs();
+  Eigen::VectorXd rhs(m);
+  joints_.apply(state_.a.data(), rhs.data());
+  Eigen::MatrixXd A(m, m);
+  std::vector<double> field(n), unit(m);
+  auto free_inverse_mass = [&](std::vector<double>& f) {
+    for (int32_t v = 0; v < model_.num_vertices; ++v)
+      for (int d = 0; d < 3; ++d)
+        f[3 * v + d] = model_.dirichlet[v] >= 0 ? 0.0 : f[3 * v + d] / model_.mass[v];
+  };
+  for (int64_t i = 0; i < m; ++i) {
+    std::fill(field.begin(), field.end(), 0.0);
+    std::fill(unit.begin(), unit.end(), 0.0);
+    unit[i] = 1.0;
+    joints_.apply_transpose(unit.data(), field.data());
+    free_inverse_mass(field);
+    joints_.apply(field.data(), A.col(i).data());
+  }
+  // Redundant joints make A singular; the minimum-norm multiplier is then the natural choice.
+  const Eigen::VectorXd mu = A.completeOrthogonalDecomposition().solve(rhs);
+  std::fill(field.begin(), field.end(), 0.0);
+  joints_.apply_transpose(mu.data(), field.data());
+  free_inverse_mass(field);
+  for (int64_t i = 0; i < n; ++i) state_.a[i] -= field[i];
+  // The joint force is J^T lambda with lambda = -mu: the multipliers start there.
+  for (int64_t j = 0; j < joints_.size(); ++j) joints_.set_multiplier(j, -mu.segment<3>(3 * j));
 }
 
 StepOutcome Simulation::start_point(double t_next) {
@@ -203,6 +284,7 @@ void Simulation::measure(StepStats& stats) const {
     stats.min_distance = summary.min_distance;
   }
   stats.total_energy = kinetic + stats.elastic_energy + gravity + stats.barrier_energy;
+  if (!joints_.empty()) stats.joint_violation = joints_.max_violation(x.data());
   stats.momentum = momentum;
 }
 

@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace nexdyn {
@@ -43,6 +44,7 @@ struct StepStats {
   int64_t contacts = 0;
   double min_distance = 0.0;
   double wall_seconds = 0.0;
+  std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
 };
 
 struct StepOutcome {
@@ -70,16 +72,25 @@ class Simulation {
 
   // Newton's starting point for the step to t_next (written into x_next_).
   StepOutcome start_point(double t_next);
+  // Newton solves of the step, repeated with updated joint multipliers until every joint holds
+  // to the tolerance; adds the Newton iterations to `iterations`.
+  NewtonResult solve_step(int& iterations);
+  // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
+  void constrain_initial_acceleration();
 
   const Scene& scene_;
   const Model& model_;
   State state_;
   StepStats stats_;
   StepProfile profile_;
+  JointSet joints_;  // before elastic_, which takes its coupling groups
   ElasticAssembly elastic_;
   std::unique_ptr<BarrierPotential> contact_;  // null without contact
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
+  double joint_tolerance_ = 0.0;          // [m]
+  bool joint_stiffness_set_ = false;
+  double joint_stiffening_ = 1.0;          // product of the stiffenings so far
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
 };
 

@@ -13,6 +13,7 @@
 #include "engine/mesh/msh_reader.hpp"
 #include "engine/mesh/surface.hpp"
 #include "engine/mesh/tet_mesh.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
 
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
@@ -22,6 +23,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -142,8 +144,9 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
 }
 
 void read_solver(const json& j, const Where& w, SolverSettings& solver) {
-  check_keys(j, w, {"tolerance", "max_iterations"});
+  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance"});
   if (j.contains("tolerance")) solver.tolerance = positive(j["tolerance"], w["tolerance"]);
+  if (j.contains("joint_tolerance")) solver.joint_tolerance = positive(j["joint_tolerance"], w["joint_tolerance"]);
   if (j.contains("max_iterations"))
     solver.max_iterations = static_cast<int>(integer(j["max_iterations"], w["max_iterations"], 1));
 }
@@ -434,6 +437,102 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
   model.dirichlet_motions.push_back(motion);
 }
 
+// ---- joints ------------------------------------------------------------------------------------
+
+// The tet of body `b` nearest to `point` (distance 0 when inside; the lowest index on ties) and
+// the point's barycentric weights in it, extrapolated when it lies outside.
+void attach_to_body(const Model& model, const BodyRange& body, const Eigen::Vector3d& point,
+                    int32_t (&vertex)[4], double (&weight)[4]) {
+  auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * int64_t{v}]); };
+  double best = std::numeric_limits<double>::infinity();
+  int32_t best_tet = body.tet_begin;
+  for (int32_t t = body.tet_begin; t < body.tet_begin + body.tet_count && best > 0.0; ++t) {
+    const int32_t* c = &model.tets[4 * int64_t{t}];
+    // Inside: every face sees the point on its inner side; else the nearest face's distance.
+    double d = 0.0;
+    bool inside = true;
+    constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    double nearest_face = std::numeric_limits<double>::infinity();
+    for (const auto& f : kFace) {
+      const Eigen::Vector3d a = X(c[f[0]]), b = X(c[f[1]]), e = X(c[f[2]]);
+      inside = inside && (b - a).cross(e - a).dot(point - a) <= 0.0;
+      nearest_face = std::min(nearest_face, point_triangle_distance(point, a, b, e));
+    }
+    if (!inside) d = nearest_face;
+    if (d < best) {
+      best = d;
+      best_tet = t;
+    }
+  }
+  const int32_t* c = &model.tets[4 * int64_t{best_tet}];
+  Eigen::Matrix3d edges;
+  edges << X(c[1]) - X(c[0]), X(c[2]) - X(c[0]), X(c[3]) - X(c[0]);
+  const Eigen::Vector3d l = edges.inverse() * (point - X(c[0]));
+  weight[0] = 1.0 - l.sum();
+  for (int k = 0; k < 3; ++k) weight[k + 1] = l[k];
+  for (int k = 0; k < 4; ++k) vertex[k] = c[k];
+}
+
+// The one body made from "bodies" entry `entry` (an "array" entry makes several: ambiguous).
+const BodyRange& joint_body(const json& value, const Where& w, const Model& model,
+                            int64_t num_scene_bodies) {
+  const int64_t entry = integer(value, w, 0);
+  if (entry >= num_scene_bodies)
+    w.fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", value);
+  const BodyRange* found = nullptr;
+  for (const BodyRange& body : model.bodies) {
+    if (body.obstacle || body.scene_entry != entry) continue;
+    if (found) w.fail("body " + std::to_string(entry) + " is an \"array\" of several bodies; a joint needs one", value);
+    found = &body;
+  }
+  return *found;
+}
+
+void read_joint(const json& j, const Where& w, int32_t scene_entry, Model& model,
+                int64_t num_scene_bodies) {
+  check_keys(j, w, {"type", "body", "bodies", "point"});
+  if (!j.contains("type")) w.fail("missing key \"type\" (\"pin\" or \"ball\")");
+  if (!j.contains("point")) w.fail("missing key \"point\"");
+  const std::string type = string(j["type"], w["type"]);
+  const Eigen::Vector3d point = vec3(j["point"], w["point"]);
+  Joint joint;
+  joint.scene_entry = scene_entry;
+  if (type == "pin") {
+    if (!j.contains("body") || j.contains("bodies")) w.fail("a pin takes \"body\" (one index), not \"bodies\"");
+    joint.type = JointType::pin;
+    joint.count = 4;
+    int32_t v[4];
+    double weight[4];
+    attach_to_body(model, joint_body(j["body"], w["body"], model, num_scene_bodies), point, v, weight);
+    for (int k = 0; k < 4; ++k) {
+      joint.vertex[k] = v[k];
+      joint.coefficient[k] = weight[k];
+    }
+    joint.offset = -point;
+  } else if (type == "ball") {
+    if (!j.contains("bodies") || j.contains("body")) w.fail("a ball joint takes \"bodies\" (two indices), not \"body\"");
+    const json& pair = j["bodies"];
+    if (!pair.is_array() || pair.size() != 2) w["bodies"].fail("expected two body indices", pair);
+    const BodyRange& a = joint_body(pair[0], w["bodies"][0], model, num_scene_bodies);
+    const BodyRange& b = joint_body(pair[1], w["bodies"][1], model, num_scene_bodies);
+    if (&a == &b) w["bodies"].fail("a ball joint needs two different bodies", pair);
+    joint.type = JointType::ball;
+    joint.count = 8;
+    for (int side = 0; side < 2; ++side) {
+      int32_t v[4];
+      double weight[4];
+      attach_to_body(model, side == 0 ? a : b, point, v, weight);
+      for (int k = 0; k < 4; ++k) {
+        joint.vertex[4 * side + k] = v[k];
+        joint.coefficient[4 * side + k] = side == 0 ? weight[k] : -weight[k];
+      }
+    }
+  } else {
+    w["type"].fail("expected \"pin\" or \"ball\"", j["type"]);
+  }
+  model.joints.push_back(joint);
+}
+
 // ---- obstacles ---------------------------------------------------------------------------------
 
 // A static obstacle mesh in its own frame: a triangle surface with no volume. Only vertices used
@@ -720,8 +819,6 @@ Scene load_scene(const fs::path& file) {
   // Obstacles act on bodies only through contact; without it they would silently do nothing.
   if (has_obstacles && !scene.contact.enabled)
     w["obstacles"].fail("obstacles need contact; add \"contact\": {}");
-  if (root.contains("joints") && !(root["joints"].is_array() && root["joints"].empty()))
-    w["joints"].fail("not available in this version of the engine yet");
 
   // Materials.
   if (!root.contains("materials")) w.fail("missing key \"materials\"");
@@ -757,6 +854,15 @@ Scene load_scene(const fs::path& file) {
     if (!boundary.is_array()) w["boundary"].fail("expected an array", boundary);
     for (size_t i = 0; i < boundary.size(); ++i)
       read_boundary(boundary[i], w["boundary"][i], scene.model, static_cast<int64_t>(bodies.size()));
+  }
+
+  // Joints, on the bodies' tets.
+  if (root.contains("joints")) {
+    const json& joints = root["joints"];
+    if (!joints.is_array()) w["joints"].fail("expected an array", joints);
+    for (size_t i = 0; i < joints.size(); ++i)
+      read_joint(joints[i], w["joints"][i], static_cast<int32_t>(i), scene.model,
+                 static_cast<int64_t>(bodies.size()));
   }
 
   // Obstacles, after every body and every boundary entry: "bodies" entries keep their body

@@ -31,6 +31,8 @@ struct TimeSettings {
 struct SolverSettings {
   double tolerance = 1e-5;  // [m/s] Newton increment divided by dt
   int max_iterations = 100;
+  double joint_tolerance = 0.0;  // [m] largest joint violation accepted; 0 = default, 1e-9 of
+                                 // the bodies' bounding-box diagonal
 };
 
 struct ContactSettings {

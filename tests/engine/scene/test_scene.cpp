@@ -369,7 +369,8 @@ TEST_CASE("obstacle and contact errors name the key or the file") {
       {scene_with(R"("contact": {}, "time": { "beta": 0 })"), {}, {"time.integrator", "custom", "beta = 0"}},
       {scene_with(R"("contact": { "friction": 0.3 })"), {}, {"contact.friction", "not available yet", "0.3"}},
       {scene_with(R"("contact": { "friction": -1 })"), {}, {"contact.friction", "-1"}},
-      {scene_with(R"("joints": [ { "type": "pin", "body": 0, "point": [0, 0, 0] } ])"), {}, {"joints", "not available"}},
+      {scene_with(R"("joints": [ { "type": "pin", "body": 3, "point": [0, 0, 0] } ])"), {}, {"joints[0].body", "no such body", "3"}},
+      {scene_with(R"("joints": { "type": "pin" })"), {}, {"joints", "expected an array"}},
   };
   for (const Case& c : cases) {
     CAPTURE(c.json);
