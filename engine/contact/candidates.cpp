@@ -16,6 +16,10 @@
 #include "engine/parallel.hpp"
 
 #include <algorithm>
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+#include <bit>
 #include <limits>
 #include <memory>
 
@@ -25,6 +29,10 @@ namespace {
 
 // Primitives per parallel chunk of the query loops.
 constexpr int64_t kQueryGrain = 512;
+// Boxes per block of the linear scans: one vector compare of doubles (AVX-512).
+constexpr int kLanes = 8;
+// A neighbour's subset larger than this is queried through the neighbour's tree, not scanned.
+constexpr int32_t kMaxScan = 256;
 
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 
@@ -46,24 +54,6 @@ bool keep_edge_edge(const Model& m, int32_t a, int32_t b) {
       is_free(m, ea[0]) | is_free(m, ea[1]) | is_free(m, eb[0]) | is_free(m, eb[1]);
   return disjoint & any_free;
 }
-
-// One primitive's partners. add() stores every id and only advances past the kept ones, so the
-// filter costs no branch.
-class Partners {
- public:
-  void clear() { size_ = 0; }
-  void add(int32_t id, bool keep) {
-    if (size_ == ids_.size()) ids_.resize(2 * ids_.size() + 64);
-    ids_[size_] = id;
-    size_ += keep;
-  }
-  int32_t* begin() { return ids_.data(); }
-  int32_t* end() { return ids_.data() + size_; }
-
- private:
-  std::vector<int32_t> ids_;
-  size_t size_ = 0;
-};
 
 // Per body: the mean of x1 - x0 over its vertices (zero without x1).
 std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0, const double* x1) {
@@ -169,14 +159,33 @@ std::vector<BodyPrimitives> body_primitives(const Model& m) {
   return out;
 }
 
-// For every body, the other bodies whose world boxes overlap its own (CSR, sorted) and their
-// boxes (6 per entry: lower, upper), found by Embree over the body boxes. A body's box is the union of its surface vertices' boxes, which
-// contain its edges' and triangles'. Pairs of two bodies without a free vertex are left out.
-void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
-                     const FrameBoxes& world, std::vector<int32_t>& ptr,
-                     std::vector<int32_t>& neighbors, std::vector<double>& neighbor_boxes) {
+// The pairs of bodies whose world boxes overlap, as a CSR over bodies (found by Embree over the
+// body boxes). A body's box is the union of its surface vertices' boxes, which contain its edges'
+// and triangles'. Pairs of two bodies without a free vertex are left out.
+struct NeighborBodies {
+  std::vector<int32_t> ptr;     // body A's entries: [ptr[A], ptr[A + 1])
+  std::vector<int32_t> above;   // body A's first entry with a neighbour numbered above A
+  std::vector<int32_t> owner;   // entry k: A
+  std::vector<int32_t> body;    // entry k: the neighbour B, increasing within A's entries
+  std::vector<double> box;      // entry k: B's box (6 numbers: lower, upper)
+  std::vector<double> body_lo, body_hi;  // (num_bodies x 3) every body's box
+
+  // Whether box [lo, hi] overlaps the neighbour of entry k.
+  bool overlaps(int32_t k, const double* lo, const double* hi) const {
+    const double* b = &box[6 * int64_t{k}];
+    return (b[0] <= hi[0]) & (lo[0] <= b[3]) & (b[1] <= hi[1]) & (lo[1] <= b[4]) &
+           (b[2] <= hi[2]) & (lo[2] <= b[5]);
+  }
+};
+
+NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
+                               const FrameBoxes& world) {
   const auto nb = static_cast<int32_t>(m.bodies.size());
-  std::vector<double> lo(3 * size_t(nb)), hi(3 * size_t(nb));
+  NeighborBodies out;
+  std::vector<double>& lo = out.body_lo;
+  std::vector<double>& hi = out.body_hi;
+  lo.resize(3 * size_t(nb));
+  hi.resize(3 * size_t(nb));
   parallel_for(nb, [&](int64_t begin, int64_t end) {
     for (int64_t b = begin; b < end; ++b) {
       for (int d = 0; d < 3; ++d) {
@@ -202,7 +211,6 @@ void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
   std::vector<IndexPair> pairs =
       self_overlapping_pairs(slo.data(), shi.data(), static_cast<int32_t>(with_surface.size()));
 
-  std::vector<int32_t> count(size_t(nb) + 1, 0);
   std::vector<IndexPair> both;
   both.reserve(2 * pairs.size());
   for (const IndexPair& p : pairs) {
@@ -212,44 +220,217 @@ void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
     both.emplace_back(b, a);
   }
   std::sort(both.begin(), both.end());
-  ptr.assign(size_t(nb) + 1, 0);
-  neighbors.resize(both.size());
-  neighbor_boxes.resize(6 * both.size());
+  out.ptr.assign(size_t(nb) + 1, 0);
+  out.above.assign(size_t(nb), 0);
+  out.owner.resize(both.size());
+  out.body.resize(both.size());
+  out.box.resize(6 * both.size());
   for (size_t k = 0; k < both.size(); ++k) {
-    ++ptr[both[k].first + 1];
-    const int32_t b = both[k].second;
-    neighbors[k] = b;
+    const auto [a, b] = both[k];
+    ++out.ptr[a + 1];
+    out.above[a] += b < a;
+    out.owner[k] = a;
+    out.body[k] = b;
     for (int d = 0; d < 3; ++d) {
-      neighbor_boxes[6 * k + d] = lo[3 * size_t(b) + d];
-      neighbor_boxes[6 * k + 3 + d] = hi[3 * size_t(b) + d];
+      out.box[6 * k + d] = lo[3 * size_t(b) + d];
+      out.box[6 * k + 3 + d] = hi[3 * size_t(b) + d];
     }
   }
-  for (int32_t b = 0; b < nb; ++b) ptr[b + 1] += ptr[b];
+  for (int32_t b = 0; b < nb; ++b) {
+    out.ptr[b + 1] += out.ptr[b];
+    out.above[b] += out.ptr[b];
+  }
+  return out;
 }
 
-// Runs find(i, partners) for every primitive i of [0, n) in parallel, sorts each primitive's
-// partners and writes the pairs (i', partner) in order of i, where i' = first_of(i).
-template <typename FirstOf, typename Find>
-void collect_sorted_pairs(int64_t n, FirstOf&& first_of, Find&& find, std::vector<IndexPair>& out) {
-  std::vector<std::vector<IndexPair>> chunks(static_cast<size_t>((n + kQueryGrain - 1) / kQueryGrain));
+// One chunk's output pairs. put() writes every pair and only advances past the kept ones, so the
+// filters cost no branch; room(n) must come first for the n puts that follow.
+class PairBuffer {
+ public:
+  void room(size_t n) {
+    if (size_ + n > pairs_.size()) pairs_.resize(std::max(2 * pairs_.size(), size_ + n + 1024));
+  }
+  void put(int32_t first, int32_t second, bool keep) {
+    pairs_[size_] = {first, second};
+    size_ += keep;
+  }
+#if defined(__AVX512F__)
+  // Puts the lanes of `pairs` (IndexPair layout) whose bit is set in `keep`, in lane order.
+  void put_block(__m512i pairs, __mmask8 keep) {
+    _mm512_mask_compressstoreu_epi64(&pairs_[size_], keep, pairs);
+    size_ += static_cast<size_t>(std::popcount(unsigned{keep}));
+  }
+#endif
+  size_t size() const { return size_; }
+  const IndexPair* data() const { return pairs_.data(); }
+  // Sorts the pairs put since size() was `start` (one primitive's partners from a tree query).
+  void sort_from(size_t start) {
+    std::sort(pairs_.begin() + static_cast<int64_t>(start), pairs_.begin() + static_cast<int64_t>(size_));
+  }
+
+ private:
+  std::vector<IndexPair> pairs_;
+  size_t size_ = 0;
+};
+
+// Runs emit(i, buffer) for every primitive i of [0, n) in parallel chunks, each putting its pairs
+// in sorted order, and concatenates the chunks in order.
+template <typename Emit>
+void collect_pairs(int64_t n, Emit&& emit, std::vector<IndexPair>& out) {
+  std::vector<PairBuffer> chunks(static_cast<size_t>((n + kQueryGrain - 1) / kQueryGrain));
   for_each_chunk(n, kQueryGrain, [&](int64_t c, int64_t begin, int64_t end) {
-    Partners partners;
-    std::vector<IndexPair>& local = chunks[c];
-    for (int64_t i = begin; i < end; ++i) {
-      partners.clear();
-      find(static_cast<int32_t>(i), partners);
-      std::sort(partners.begin(), partners.end());
-      const int32_t first = first_of(static_cast<int32_t>(i));
-      for (int32_t p : partners) local.emplace_back(first, p);
-    }
+    for (int64_t i = begin; i < end; ++i) emit(static_cast<int32_t>(i), chunks[c]);
   });
   std::vector<size_t> offset(chunks.size() + 1, 0);
   for (size_t c = 0; c < chunks.size(); ++c) offset[c + 1] = offset[c] + chunks[c].size();
   out.resize(offset.back());
   parallel_for(static_cast<int64_t>(chunks.size()), [&](int64_t begin, int64_t end) {
     for (int64_t c = begin; c < end; ++c)
-      std::copy(chunks[c].begin(), chunks[c].end(), out.begin() + static_cast<int64_t>(offset[c]));
+      std::copy(chunks[c].data(), chunks[c].data() + chunks[c].size(), out.begin() + static_cast<int64_t>(offset[c]));
   }, 1);
+}
+
+// Coordinate arrays of boxes, one per axis and side: the layout of the linear scans, which test
+// kLanes boxes per vector compare.
+struct BoxColumns {
+  std::vector<double> lo[3], hi[3];
+  void resize(size_t n) {
+    for (int d = 0; d < 3; ++d) {
+      lo[d].resize(n);
+      hi[d].resize(n);
+    }
+  }
+};
+
+BoxColumns box_columns(const std::vector<double>& lower, const std::vector<double>& upper) {
+  BoxColumns c;
+  const auto n = static_cast<int64_t>(lower.size() / 3);
+  c.resize(static_cast<size_t>(n));
+  parallel_for(n, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i)
+      for (int d = 0; d < 3; ++d) {
+        c.lo[d][i] = lower[3 * i + d];
+        c.hi[d][i] = upper[3 * i + d];
+      }
+  }, 4096);
+  return c;
+}
+
+// Per primitive of K vertices: whether one of them is free. Primitives of different bodies share
+// no vertex, so for them this is the whole filter of candidates.hpp.
+template <int K>
+std::vector<uint8_t> free_flags(const Model& m, const int32_t* ids, int64_t n) {
+  std::vector<uint8_t> out(static_cast<size_t>(n));
+  parallel_for(n, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i) {
+      bool any = false;
+      for (int k = 0; k < K; ++k) any |= is_free(m, ids[K * i + k]);
+      out[i] = any;
+    }
+  }, 4096);
+  return out;
+}
+
+// For each entry k = (body A, neighbour B) of the neighbour CSR: the primitives of B whose world
+// boxes overlap A's body box, in increasing id order. A primitive of A only ever meets these, so
+// it scans them and gets its partners in B already sorted. They are stored as columns padded to
+// whole blocks of kLanes with empty boxes (lower +inf, upper -inf, overlapping nothing). A
+// subset larger than kMaxScan is not stored: that entry queries B's tree instead (use_tree), so a
+// big body next to a small one costs a log per query, not a long scan.
+struct NeighborSubsets {
+  std::vector<int64_t> slot_begin;  // entry k: slots [slot_begin[k], slot_begin[k + 1])
+  std::vector<uint8_t> use_tree;
+  BoxColumns boxes;
+  std::vector<int32_t> id;
+  std::vector<uint8_t> free_mask;  // per block of kLanes slots, bit j: slot j has a free vertex
+};
+
+// range(b) gives body b's primitives [first, last); only entries with wanted(k) get a subset.
+template <typename Range, typename Wanted>
+NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BoxColumns& boxes,
+                                 const std::vector<uint8_t>& free, Range&& range, Wanted&& wanted) {
+  const auto entries = static_cast<int64_t>(neighbors.body.size());
+  auto overlaps_owner = [&](int64_t k, int32_t p) {
+    const double* lo = &neighbors.body_lo[3 * int64_t{neighbors.owner[k]}];
+    const double* hi = &neighbors.body_hi[3 * int64_t{neighbors.owner[k]}];
+    return (boxes.lo[0][p] <= hi[0]) & (lo[0] <= boxes.hi[0][p]) & (boxes.lo[1][p] <= hi[1]) &
+           (lo[1] <= boxes.hi[1][p]) & (boxes.lo[2][p] <= hi[2]) & (lo[2] <= boxes.hi[2][p]);
+  };
+  NeighborSubsets s;
+  std::vector<int32_t> count(static_cast<size_t>(entries), 0);
+  s.use_tree.assign(static_cast<size_t>(entries), 0);
+  parallel_for(entries, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      if (!wanted(k)) continue;
+      const auto [first, last] = range(neighbors.body[k]);
+      int32_t n = 0;
+      for (int32_t p = first; p < last; ++p) n += overlaps_owner(k, p);
+      count[k] = n;
+      s.use_tree[k] = n > kMaxScan;
+    }
+  }, 16);
+  s.slot_begin.assign(static_cast<size_t>(entries) + 1, 0);
+  for (int64_t k = 0; k < entries; ++k)
+    s.slot_begin[k + 1] = s.slot_begin[k] + (s.use_tree[k] ? 0 : (count[k] + kLanes - 1) / kLanes * kLanes);
+  const auto slots = static_cast<size_t>(s.slot_begin.back());
+  s.boxes.resize(slots);
+  s.id.resize(slots);
+  s.free_mask.assign(slots / kLanes, 0);
+  parallel_for(entries, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      if (s.slot_begin[k + 1] == s.slot_begin[k]) continue;
+      int64_t slot = s.slot_begin[k];
+      const auto [first, last] = range(neighbors.body[k]);
+      for (int32_t p = first; p < last; ++p)
+        if (overlaps_owner(k, p)) {
+          for (int d = 0; d < 3; ++d) {
+            s.boxes.lo[d][slot] = boxes.lo[d][p];
+            s.boxes.hi[d][slot] = boxes.hi[d][p];
+          }
+          s.id[slot] = p;
+          s.free_mask[slot / kLanes] |= static_cast<uint8_t>(free[p] << (slot % kLanes));
+          ++slot;
+        }
+      for (; slot < s.slot_begin[k + 1]; ++slot) {
+        for (int d = 0; d < 3; ++d) {
+          s.boxes.lo[d][slot] = std::numeric_limits<double>::infinity();
+          s.boxes.hi[d][slot] = -std::numeric_limits<double>::infinity();
+        }
+        s.id[slot] = 0;
+      }
+    }
+  }, 16);
+  return s;
+}
+
+// Puts (first, p) for every primitive p of subset entry k whose box overlaps [lo, hi], in
+// increasing p. With AVX-512 a block of kLanes boxes is one compare per bound and one compressed
+// store of the kept pairs, no branch; otherwise the same per box.
+void scan_subset(const NeighborSubsets& s, int64_t k, const double* lo, const double* hi,
+                 int32_t first, bool first_free, PairBuffer& out) {
+  const int64_t begin = s.slot_begin[k], end = s.slot_begin[k + 1];
+  out.room(static_cast<size_t>(end - begin));
+#if defined(__AVX512F__)
+  static_assert(kLanes == 8 && sizeof(IndexPair) == 8);
+  const __m512d qlo[3] = {_mm512_set1_pd(lo[0]), _mm512_set1_pd(lo[1]), _mm512_set1_pd(lo[2])};
+  const __m512d qhi[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
+  const __m512i first_lane = _mm512_set1_epi64(static_cast<uint32_t>(first));  // pair.first: low half
+  for (int64_t base = begin; base < end; base += kLanes) {
+    __mmask8 hits = first_free ? 0xff : s.free_mask[base / kLanes];
+    for (int d = 0; d < 3; ++d) {
+      hits = _mm512_mask_cmp_pd_mask(hits, _mm512_loadu_pd(&s.boxes.lo[d][base]), qhi[d], _CMP_LE_OQ);
+      hits = _mm512_mask_cmp_pd_mask(hits, qlo[d], _mm512_loadu_pd(&s.boxes.hi[d][base]), _CMP_LE_OQ);
+    }
+    const __m512i ids = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(&s.id[base])));
+    out.put_block(_mm512_or_si512(first_lane, _mm512_slli_epi64(ids, 32)), hits);
+  }
+#else
+  for (int64_t q = begin; q < end; ++q) {
+    bool hit = first_free || ((s.free_mask[q / kLanes] >> (q % kLanes)) & 1);
+    for (int d = 0; d < 3; ++d) hit &= (s.boxes.lo[d][q] <= hi[d]) & (lo[d] <= s.boxes.hi[d][q]);
+    out.put(first, s.id[q], hit);
+  }
+#endif
 }
 
 void find_vertex_plane(const Model& m, const double* x0, const double* x1, double inflation,
@@ -278,19 +459,30 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   const FrameBoxes& own = boxes.body_frame();
   const std::vector<BodyPrimitives> prims = body_primitives(m);
   const auto nb = static_cast<int64_t>(m.bodies.size());
+  const NeighborBodies neighbors = neighbor_bodies(m, prims, world);
 
-  std::vector<int32_t> neighbor_ptr, neighbors;
-  std::vector<double> neighbor_boxes;
-  neighbor_bodies(m, prims, world, neighbor_ptr, neighbors, neighbor_boxes);
-  // A primitive only queries a neighbour's tree when it overlaps that body's box.
-  auto near_neighbor = [&](int32_t k, const double* lo, const double* hi) {
-    const double* box = &neighbor_boxes[6 * int64_t{k}];
-    return (box[0] <= hi[0]) & (lo[0] <= box[3]) & (box[1] <= hi[1]) & (lo[1] <= box[4]) &
-           (box[2] <= hi[2]) & (lo[2] <= box[5]);
-  };
+  const auto nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
+  const auto ne = static_cast<int64_t>(m.surface_edges.size() / 2);
+  const std::vector<uint8_t> tri_free = free_flags<3>(m, m.surface_triangles.data(), nt);
+  const std::vector<uint8_t> edge_free = free_flags<2>(m, m.surface_edges.data(), ne);
+  // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
+  // lower edge, so only the higher-numbered neighbours' edges.
+  const NeighborSubsets tri_near = neighbor_subsets(
+      neighbors, box_columns(world.t_lo, world.t_hi), tri_free,
+      [&](int32_t b) { return std::pair{prims[b].t_begin, prims[b].t_end}; },
+      [](int64_t) { return true; });
+  const NeighborSubsets edge_near = neighbor_subsets(
+      neighbors, box_columns(world.e_lo, world.e_hi), edge_free,
+      [&](int32_t b) { return std::pair{prims[b].e_begin, prims[b].e_end}; },
+      [&](int64_t k) { return neighbors.body[k] > neighbors.owner[k]; });
 
-  // Trees over each body's triangles and edges: in the world frame for the neighbours' queries,
-  // in the body frame for its own (the same trees when nothing moves).
+  // Trees over a body's triangles and edges: in the body frame for its own pairs, in the world
+  // frame for neighbours too many to scan (the same trees when nothing moves).
+  std::vector<uint8_t> tri_for_neighbors(nb, 0), edge_for_neighbors(nb, 0);
+  for (size_t k = 0; k < neighbors.body.size(); ++k) {
+    tri_for_neighbors[neighbors.body[k]] |= tri_near.use_tree[k];
+    edge_for_neighbors[neighbors.body[k]] |= edge_near.use_tree[k];
+  }
   std::vector<BoxTree> tri_world(nb), edge_world(nb), tri_own, edge_own;
   if (boxes.moving) {
     tri_own.resize(nb);
@@ -299,12 +491,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   parallel_for(nb, [&](int64_t begin, int64_t end) {
     for (int64_t b = begin; b < end; ++b) {
       const BodyPrimitives& p = prims[b];
-      const bool for_neighbors = neighbor_ptr[b + 1] > neighbor_ptr[b];
       const bool for_self = p.any_free;
-      if (for_neighbors || (for_self && !boxes.moving)) {
+      if (tri_for_neighbors[b] || (for_self && !boxes.moving))
         tri_world[b].build(world.t_lo.data(), world.t_hi.data(), p.t_begin, p.t_end);
+      if (edge_for_neighbors[b] || (for_self && !boxes.moving))
         edge_world[b].build(world.e_lo.data(), world.e_hi.data(), p.e_begin, p.e_end);
-      }
       if (for_self && boxes.moving) {
         tri_own[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
         edge_own[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
@@ -314,38 +505,64 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   const std::vector<BoxTree>& tri_self = boxes.moving ? tri_own : tri_world;
   const std::vector<BoxTree>& edge_self = boxes.moving ? edge_own : edge_world;
 
-  // Vertex-triangle: each surface vertex against its body's triangles and its neighbours'.
-  collect_sorted_pairs(
+  // A primitive's pairs with neighbour entry k: none unless it overlaps that body's box, else a
+  // scan of the subset or, for big subsets, a query of the neighbour's tree.
+  auto neighbor_pairs = [&](const NeighborSubsets& subsets, const std::vector<BoxTree>& trees,
+                            const std::vector<uint8_t>& partner_free, int32_t k, const double* lo,
+                            const double* hi, int32_t first, bool first_free, PairBuffer& buffer) {
+    if (!neighbors.overlaps(k, lo, hi)) return;
+    if (!subsets.use_tree[k]) return scan_subset(subsets, k, lo, hi, first, first_free, buffer);
+    const size_t start = buffer.size();
+    trees[neighbors.body[k]].query(lo, hi, [&](int32_t p) {
+      buffer.room(1);
+      buffer.put(first, p, first_free | (partner_free[p] != 0));
+    });
+    buffer.sort_from(start);
+  };
+
+  // Vertex-triangle: each surface vertex against the neighbours below its body, its own body and
+  // the neighbours above, so that its partners come out in increasing triangle order.
+  collect_pairs(
       static_cast<int64_t>(m.surface_vertices.size()),
-      [&](int32_t i) { return m.surface_vertices[i]; },
-      [&](int32_t i, Partners& partners) {
+      [&](int32_t i, PairBuffer& buffer) {
         const int32_t v = m.surface_vertices[i];
         const int32_t body = m.vertex_body[v];
-        auto keep = [&](int32_t t) { partners.add(t, keep_vertex_triangle(m, v, t)); };
-        if (prims[body].any_free)
-          tri_self[body].query(&own.v_lo[3 * int64_t{i}], &own.v_hi[3 * int64_t{i}], keep);
+        const bool v_free = is_free(m, v);
         const double* lo = &world.v_lo[3 * int64_t{i}];
         const double* hi = &world.v_hi[3 * int64_t{i}];
-        for (int32_t k = neighbor_ptr[body]; k < neighbor_ptr[body + 1]; ++k)
-          if (near_neighbor(k, lo, hi)) tri_world[neighbors[k]].query(lo, hi, keep);
+        for (int32_t k = neighbors.ptr[body]; k < neighbors.above[body]; ++k)
+          neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
+        if (prims[body].any_free) {
+          const size_t start = buffer.size();
+          tri_self[body].query(&own.v_lo[3 * int64_t{i}], &own.v_hi[3 * int64_t{i}], [&](int32_t t) {
+            buffer.room(1);
+            buffer.put(v, t, keep_vertex_triangle(m, v, t));
+          });
+          buffer.sort_from(start);
+        }
+        for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
+          neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
       },
       out.vertex_triangle);
 
-  // Edge-edge: each edge against the higher-numbered edges of its body and its neighbours'.
-  collect_sorted_pairs(
-      static_cast<int64_t>(m.surface_edges.size() / 2), [](int32_t a) { return a; },
-      [&](int32_t a, Partners& partners) {
+  // Edge-edge: each edge against the higher-numbered edges of its body, then of the neighbours
+  // above its body.
+  collect_pairs(
+      ne,
+      [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m.vertex_body[m.surface_edges[2 * int64_t{a}]];
-        auto keep = [&](int32_t b) { partners.add(b, (b > a) & keep_edge_edge(m, a, b)); };
-        if (prims[body].any_free)
-          edge_self[body].query(&own.e_lo[3 * int64_t{a}], &own.e_hi[3 * int64_t{a}], keep);
+        if (prims[body].any_free) {
+          const size_t start = buffer.size();
+          edge_self[body].query(&own.e_lo[3 * int64_t{a}], &own.e_hi[3 * int64_t{a}], [&](int32_t b) {
+            buffer.room(1);
+            buffer.put(a, b, (b > a) & keep_edge_edge(m, a, b));
+          });
+          buffer.sort_from(start);
+        }
         const double* lo = &world.e_lo[3 * int64_t{a}];
         const double* hi = &world.e_hi[3 * int64_t{a}];
-        for (int32_t k = neighbor_ptr[body]; k < neighbor_ptr[body + 1]; ++k) {
-          const int32_t other = neighbors[k];
-          if (prims[other].e_end - 1 <= a) continue;  // all its edges are numbered below a
-          if (near_neighbor(k, lo, hi)) edge_world[other].query(lo, hi, keep);
-        }
+        for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
+          neighbor_pairs(edge_near, edge_world, edge_free, k, lo, hi, a, edge_free[a] != 0, buffer);
       },
       out.edge_edge);
 
