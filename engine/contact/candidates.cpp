@@ -450,6 +450,70 @@ void find_vertex_plane(const Model& m, const double* x0, const double* x1, doubl
   }
 }
 
+// Pairs as rows of partners: row i holds the partners of query primitive i (a surface vertex
+// index, or an edge), sorted.
+struct PairRows {
+  std::vector<int64_t> row;  // row i: partner[row[i], row[i + 1])
+  std::vector<int32_t> partner;
+
+  // Concatenates per-body lists of (query primitive, partner), sorted, whose query primitives
+  // are numbered contiguously per body in body order, into rows over [0, num_rows).
+  PairRows(const std::vector<std::vector<IndexPair>>& lists, int64_t num_rows) {
+    std::vector<size_t> offset(lists.size() + 1, 0);
+    for (size_t b = 0; b < lists.size(); ++b) offset[b + 1] = offset[b] + lists[b].size();
+    partner.resize(offset.back());
+    row.assign(static_cast<size_t>(num_rows) + 1, 0);
+    parallel_for(static_cast<int64_t>(lists.size()), [&](int64_t begin, int64_t end) {
+      for (int64_t b = begin; b < end; ++b)
+        for (size_t j = 0; j < lists[b].size(); ++j) {
+          partner[offset[b] + j] = lists[b][j].second;
+          ++row[lists[b][j].first + 1];  // rows of one body are its own
+        }
+    }, 1);
+    for (int64_t i = 0; i < num_rows; ++i) row[i + 1] += row[i];
+  }
+
+  // Puts (first, p) for the partners p of row i.
+  void put_row(int32_t i, int32_t first, PairBuffer& out) const {
+    const int64_t begin = row[i], end = row[i + 1];
+    out.room(static_cast<size_t>(end - begin));
+    for (int64_t j = begin; j < end; ++j) out.put(first, partner[j], true);
+  }
+};
+
+// The kept pairs within each body, from its boxes in its own frame: a tree over its vertices
+// traversed against one over its triangles, and its edge tree against itself (each pair met
+// once). Rows are surface vertex indices and edges; edge pairs (a, b) have a < b.
+struct SameBodyPairs {
+  PairRows vertex_triangle, edge_edge;
+};
+
+SameBodyPairs same_body_pairs(const Model& m, const std::vector<BodyPrimitives>& prims,
+                              const FrameBoxes& own) {
+  const auto nb = static_cast<int64_t>(m.bodies.size());
+  std::vector<std::vector<IndexPair>> vt(nb), ee(nb);
+  parallel_for(nb, [&](int64_t begin, int64_t end) {
+    BoxTree vertices, triangles, edges;
+    for (int64_t b = begin; b < end; ++b) {
+      const BodyPrimitives& p = prims[b];
+      if (!p.any_free) continue;
+      vertices.build(own.v_lo.data(), own.v_hi.data(), p.sv_begin, p.sv_end);
+      triangles.build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
+      edges.build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
+      vertices.pairs_with(triangles, [&](int32_t i, int32_t t) {
+        if (keep_vertex_triangle(m, m.surface_vertices[i], t)) vt[b].emplace_back(i, t);
+      });
+      edges.self_pairs([&](int32_t e, int32_t f) {
+        if (keep_edge_edge(m, e, f)) ee[b].emplace_back(std::min(e, f), std::max(e, f));
+      });
+      std::sort(vt[b].begin(), vt[b].end());
+      std::sort(ee[b].begin(), ee[b].end());
+    }
+  }, 1);
+  return {PairRows(vt, static_cast<int64_t>(m.surface_vertices.size())),
+          PairRows(ee, static_cast<int64_t>(m.surface_edges.size() / 2))};
+}
+
 }  // namespace
 
 void find_contact_candidates(const Model& m, const double* x0, const double* x1, double inflation,
@@ -476,34 +540,22 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       [&](int32_t b) { return std::pair{prims[b].e_begin, prims[b].e_end}; },
       [&](int64_t k) { return neighbors.body[k] > neighbors.owner[k]; });
 
-  // Trees over a body's triangles and edges: in the body frame for its own pairs, in the world
-  // frame for neighbours too many to scan (the same trees when nothing moves).
-  std::vector<uint8_t> tri_for_neighbors(nb, 0), edge_for_neighbors(nb, 0);
+  // Trees over the world boxes of the neighbours too many to scan.
+  std::vector<uint8_t> tri_tree_needed(nb, 0), edge_tree_needed(nb, 0);
   for (size_t k = 0; k < neighbors.body.size(); ++k) {
-    tri_for_neighbors[neighbors.body[k]] |= tri_near.use_tree[k];
-    edge_for_neighbors[neighbors.body[k]] |= edge_near.use_tree[k];
+    tri_tree_needed[neighbors.body[k]] |= tri_near.use_tree[k];
+    edge_tree_needed[neighbors.body[k]] |= edge_near.use_tree[k];
   }
-  std::vector<BoxTree> tri_world(nb), edge_world(nb), tri_own, edge_own;
-  if (boxes.moving) {
-    tri_own.resize(nb);
-    edge_own.resize(nb);
-  }
+  std::vector<BoxTree> tri_world(nb), edge_world(nb);
   parallel_for(nb, [&](int64_t begin, int64_t end) {
     for (int64_t b = begin; b < end; ++b) {
-      const BodyPrimitives& p = prims[b];
-      const bool for_self = p.any_free;
-      if (tri_for_neighbors[b] || (for_self && !boxes.moving))
-        tri_world[b].build(world.t_lo.data(), world.t_hi.data(), p.t_begin, p.t_end);
-      if (edge_for_neighbors[b] || (for_self && !boxes.moving))
-        edge_world[b].build(world.e_lo.data(), world.e_hi.data(), p.e_begin, p.e_end);
-      if (for_self && boxes.moving) {
-        tri_own[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
-        edge_own[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
-      }
+      if (tri_tree_needed[b])
+        tri_world[b].build(world.t_lo.data(), world.t_hi.data(), prims[b].t_begin, prims[b].t_end);
+      if (edge_tree_needed[b])
+        edge_world[b].build(world.e_lo.data(), world.e_hi.data(), prims[b].e_begin, prims[b].e_end);
     }
   }, 1);
-  const std::vector<BoxTree>& tri_self = boxes.moving ? tri_own : tri_world;
-  const std::vector<BoxTree>& edge_self = boxes.moving ? edge_own : edge_world;
+  const SameBodyPairs same_body = same_body_pairs(m, prims, own);
 
   // A primitive's pairs with neighbour entry k: none unless it overlaps that body's box, else a
   // scan of the subset or, for big subsets, a query of the neighbour's tree.
@@ -532,14 +584,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         const double* hi = &world.v_hi[3 * int64_t{i}];
         for (int32_t k = neighbors.ptr[body]; k < neighbors.above[body]; ++k)
           neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
-        if (prims[body].any_free) {
-          const size_t start = buffer.size();
-          tri_self[body].query(&own.v_lo[3 * int64_t{i}], &own.v_hi[3 * int64_t{i}], [&](int32_t t) {
-            buffer.room(1);
-            buffer.put(v, t, keep_vertex_triangle(m, v, t));
-          });
-          buffer.sort_from(start);
-        }
+        same_body.vertex_triangle.put_row(i, v, buffer);
         for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
           neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
       },
@@ -551,14 +596,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       ne,
       [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m.vertex_body[m.surface_edges[2 * int64_t{a}]];
-        if (prims[body].any_free) {
-          const size_t start = buffer.size();
-          edge_self[body].query(&own.e_lo[3 * int64_t{a}], &own.e_hi[3 * int64_t{a}], [&](int32_t b) {
-            buffer.room(1);
-            buffer.put(a, b, (b > a) & keep_edge_edge(m, a, b));
-          });
-          buffer.sort_from(start);
-        }
+        same_body.edge_edge.put_row(a, a, buffer);
         const double* lo = &world.e_lo[3 * int64_t{a}];
         const double* hi = &world.e_hi[3 * int64_t{a}];
         for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
