@@ -12,13 +12,11 @@
 // from pairing every primitive with every other one along its path.
 #include "engine/contact/candidates.hpp"
 
+#include "bvh/blocked_boxes.hpp"
 #include "bvh/box_tree.hpp"
 #include "engine/parallel.hpp"
 
 #include <algorithm>
-#if defined(__AVX512F__)
-#include <immintrin.h>
-#endif
 #include <bit>
 #include <limits>
 #include <memory>
@@ -29,10 +27,11 @@ namespace {
 
 // Primitives per parallel chunk of the query loops.
 constexpr int64_t kQueryGrain = 512;
-// Boxes per block of the linear scans: one vector compare of doubles (AVX-512).
-constexpr int kLanes = 8;
-// A neighbour's subset larger than this is queried through the neighbour's tree, not scanned.
-constexpr int32_t kMaxScan = 256;
+// Longest lists scanned rather than queried through a tree: a neighbour's subset, and a body's
+// own triangles or edges. A scan tests 64 boxes per vector compare of block boxes, so it stays
+// cheaper than a tree query up to a few thousand boxes.
+constexpr int32_t kMaxScan = 4096;
+constexpr int32_t kMaxBodyScan = 4096;
 
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 
@@ -254,13 +253,22 @@ class PairBuffer {
     pairs_[size_] = {first, second};
     size_ += keep;
   }
-#if defined(__AVX512F__)
-  // Puts the lanes of `pairs` (IndexPair layout) whose bit is set in `keep`, in lane order.
-  void put_block(__m512i pairs, __mmask8 keep) {
-    _mm512_mask_compressstoreu_epi64(&pairs_[size_], keep, pairs);
-    size_ += static_cast<size_t>(std::popcount(unsigned{keep}));
+  // Puts (first, ids[j]) for j < n: all of them, or those with keep(ids[j]).
+  void put_all(int32_t first, const int32_t* ids, int32_t n) {
+    room(static_cast<size_t>(n));
+    for (int32_t j = 0; j < n; ++j) pairs_[size_ + j] = {first, ids[j]};
+    size_ += static_cast<size_t>(n);
   }
-#endif
+  template <typename Keep>
+  void put_kept(int32_t first, const int32_t* ids, int32_t n, Keep&& keep) {
+    room(static_cast<size_t>(n));
+    for (int32_t j = 0; j < n; ++j) put(first, ids[j], keep(ids[j]));
+  }
+  // Room for the ids of a scan of n boxes (BlockedBoxes::scan).
+  int32_t* scratch(int32_t n) {
+    if (static_cast<size_t>(n + BlockedBoxes::kBlock) > scratch_.size()) scratch_.resize(2 * static_cast<size_t>(n) + 64);
+    return scratch_.data();
+  }
   size_t size() const { return size_; }
   const IndexPair* data() const { return pairs_.data(); }
   // Sorts the pairs put since size() was `start` (one primitive's partners from a tree query).
@@ -271,6 +279,7 @@ class PairBuffer {
  private:
   std::vector<IndexPair> pairs_;
   size_t size_ = 0;
+  std::vector<int32_t> scratch_;
 };
 
 // Runs emit(i, buffer) for every primitive i of [0, n) in parallel chunks, each putting its pairs
@@ -290,22 +299,18 @@ void collect_pairs(int64_t n, Emit&& emit, std::vector<IndexPair>& out) {
   }, 1);
 }
 
-// Coordinate arrays of boxes, one per axis and side: the layout of the linear scans, which test
-// kLanes boxes per vector compare.
+// Coordinate arrays of boxes, one per axis and side: a layout whose loops vectorise.
 struct BoxColumns {
   std::vector<double> lo[3], hi[3];
-  void resize(size_t n) {
-    for (int d = 0; d < 3; ++d) {
-      lo[d].resize(n);
-      hi[d].resize(n);
-    }
-  }
 };
 
 BoxColumns box_columns(const std::vector<double>& lower, const std::vector<double>& upper) {
   BoxColumns c;
   const auto n = static_cast<int64_t>(lower.size() / 3);
-  c.resize(static_cast<size_t>(n));
+  for (int d = 0; d < 3; ++d) {
+    c.lo[d].resize(static_cast<size_t>(n));
+    c.hi[d].resize(static_cast<size_t>(n));
+  }
   parallel_for(n, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i)
       for (int d = 0; d < 3; ++d) {
@@ -332,23 +337,20 @@ std::vector<uint8_t> free_flags(const Model& m, const int32_t* ids, int64_t n) {
 }
 
 // For each entry k = (body A, neighbour B) of the neighbour CSR: the primitives of B whose world
-// boxes overlap A's body box, in increasing id order. A primitive of A only ever meets these, so
-// it scans them and gets its partners in B already sorted. They are stored as columns padded to
-// whole blocks of kLanes with empty boxes (lower +inf, upper -inf, overlapping nothing). A
-// subset larger than kMaxScan is not stored: that entry queries B's tree instead (use_tree), so a
-// big body next to a small one costs a log per query, not a long scan.
+// boxes overlap A's body box, listed by id (list k). A primitive of A only ever meets these, so
+// it scans them and gets its partners in B already sorted. A subset larger than kMaxScan is not
+// listed: that entry queries B's tree instead (use_tree), so a big body next to a small one
+// costs a log per query, not a long scan.
 struct NeighborSubsets {
-  std::vector<int64_t> slot_begin;  // entry k: slots [slot_begin[k], slot_begin[k + 1])
+  BlockedBoxes boxes;
   std::vector<uint8_t> use_tree;
-  BoxColumns boxes;
-  std::vector<int32_t> id;
-  std::vector<uint8_t> free_mask;  // per block of kLanes slots, bit j: slot j has a free vertex
 };
 
 // range(b) gives body b's primitives [first, last); only entries with wanted(k) get a subset.
 template <typename Range, typename Wanted>
-NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BoxColumns& boxes,
-                                 const std::vector<uint8_t>& free, Range&& range, Wanted&& wanted) {
+NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const std::vector<double>& lower,
+                                 const std::vector<double>& upper, Range&& range, Wanted&& wanted) {
+  const BoxColumns boxes = box_columns(lower, upper);
   const auto entries = static_cast<int64_t>(neighbors.body.size());
   auto overlaps_owner = [&](int64_t k, int32_t p) {
     const double* lo = &neighbors.body_lo[3 * int64_t{neighbors.owner[k]}];
@@ -357,7 +359,7 @@ NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BoxColum
            (lo[1] <= boxes.hi[1][p]) & (boxes.lo[2][p] <= hi[2]) & (lo[2] <= boxes.hi[2][p]);
   };
   NeighborSubsets s;
-  std::vector<int32_t> count(static_cast<size_t>(entries), 0);
+  std::vector<int32_t> size(static_cast<size_t>(entries), 0);
   s.use_tree.assign(static_cast<size_t>(entries), 0);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) {
@@ -365,72 +367,22 @@ NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BoxColum
       const auto [first, last] = range(neighbors.body[k]);
       int32_t n = 0;
       for (int32_t p = first; p < last; ++p) n += overlaps_owner(k, p);
-      count[k] = n;
       s.use_tree[k] = n > kMaxScan;
+      size[k] = s.use_tree[k] ? 0 : n;
     }
   }, 16);
-  s.slot_begin.assign(static_cast<size_t>(entries) + 1, 0);
-  for (int64_t k = 0; k < entries; ++k)
-    s.slot_begin[k + 1] = s.slot_begin[k] + (s.use_tree[k] ? 0 : (count[k] + kLanes - 1) / kLanes * kLanes);
-  const auto slots = static_cast<size_t>(s.slot_begin.back());
-  s.boxes.resize(slots);
-  s.id.resize(slots);
-  s.free_mask.assign(slots / kLanes, 0);
+  s.boxes.layout(size);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) {
-      if (s.slot_begin[k + 1] == s.slot_begin[k]) continue;
-      int64_t slot = s.slot_begin[k];
+      if (size[k] == 0) continue;
       const auto [first, last] = range(neighbors.body[k]);
+      int32_t index = 0;
       for (int32_t p = first; p < last; ++p)
-        if (overlaps_owner(k, p)) {
-          for (int d = 0; d < 3; ++d) {
-            s.boxes.lo[d][slot] = boxes.lo[d][p];
-            s.boxes.hi[d][slot] = boxes.hi[d][p];
-          }
-          s.id[slot] = p;
-          s.free_mask[slot / kLanes] |= static_cast<uint8_t>(free[p] << (slot % kLanes));
-          ++slot;
-        }
-      for (; slot < s.slot_begin[k + 1]; ++slot) {
-        for (int d = 0; d < 3; ++d) {
-          s.boxes.lo[d][slot] = std::numeric_limits<double>::infinity();
-          s.boxes.hi[d][slot] = -std::numeric_limits<double>::infinity();
-        }
-        s.id[slot] = 0;
-      }
+        if (overlaps_owner(k, p)) s.boxes.set(k, index++, &lower[3 * int64_t{p}], &upper[3 * int64_t{p}], p);
+      s.boxes.finish(k);
     }
   }, 16);
   return s;
-}
-
-// Puts (first, p) for every primitive p of subset entry k whose box overlaps [lo, hi], in
-// increasing p. With AVX-512 a block of kLanes boxes is one compare per bound and one compressed
-// store of the kept pairs, no branch; otherwise the same per box.
-void scan_subset(const NeighborSubsets& s, int64_t k, const double* lo, const double* hi,
-                 int32_t first, bool first_free, PairBuffer& out) {
-  const int64_t begin = s.slot_begin[k], end = s.slot_begin[k + 1];
-  out.room(static_cast<size_t>(end - begin));
-#if defined(__AVX512F__)
-  static_assert(kLanes == 8 && sizeof(IndexPair) == 8);
-  const __m512d qlo[3] = {_mm512_set1_pd(lo[0]), _mm512_set1_pd(lo[1]), _mm512_set1_pd(lo[2])};
-  const __m512d qhi[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
-  const __m512i first_lane = _mm512_set1_epi64(static_cast<uint32_t>(first));  // pair.first: low half
-  for (int64_t base = begin; base < end; base += kLanes) {
-    __mmask8 hits = first_free ? 0xff : s.free_mask[base / kLanes];
-    for (int d = 0; d < 3; ++d) {
-      hits = _mm512_mask_cmp_pd_mask(hits, _mm512_loadu_pd(&s.boxes.lo[d][base]), qhi[d], _CMP_LE_OQ);
-      hits = _mm512_mask_cmp_pd_mask(hits, qlo[d], _mm512_loadu_pd(&s.boxes.hi[d][base]), _CMP_LE_OQ);
-    }
-    const __m512i ids = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(&s.id[base])));
-    out.put_block(_mm512_or_si512(first_lane, _mm512_slli_epi64(ids, 32)), hits);
-  }
-#else
-  for (int64_t q = begin; q < end; ++q) {
-    bool hit = first_free || ((s.free_mask[q / kLanes] >> (q % kLanes)) & 1);
-    for (int d = 0; d < 3; ++d) hit &= (s.boxes.lo[d][q] <= hi[d]) & (lo[d] <= s.boxes.hi[d][q]);
-    out.put(first, s.id[q], hit);
-  }
-#endif
 }
 
 void find_vertex_plane(const Model& m, const double* x0, const double* x1, double inflation,
@@ -450,69 +402,47 @@ void find_vertex_plane(const Model& m, const double* x0, const double* x1, doubl
   }
 }
 
-// Pairs as rows of partners: row i holds the partners of query primitive i (a surface vertex
-// index, or an edge), sorted.
-struct PairRows {
-  std::vector<int64_t> row;  // row i: partner[row[i], row[i + 1])
-  std::vector<int32_t> partner;
+// Each body's own triangles and edges, boxed in its frame, listed by id (list b: body b) for
+// scans; a body with more than kMaxBodyScan of them gets a tree instead. Only bodies with a free
+// vertex have their own pairs.
+struct SameBodyBoxes {
+  BlockedBoxes triangles, edges;
+  std::vector<uint8_t> triangle_tree, edge_tree;  // per body: use the tree
+  std::vector<BoxTree> triangle_trees, edge_trees;
 
-  // Concatenates per-body lists of (query primitive, partner), sorted, whose query primitives
-  // are numbered contiguously per body in body order, into rows over [0, num_rows).
-  PairRows(const std::vector<std::vector<IndexPair>>& lists, int64_t num_rows) {
-    std::vector<size_t> offset(lists.size() + 1, 0);
-    for (size_t b = 0; b < lists.size(); ++b) offset[b + 1] = offset[b] + lists[b].size();
-    partner.resize(offset.back());
-    row.assign(static_cast<size_t>(num_rows) + 1, 0);
-    parallel_for(static_cast<int64_t>(lists.size()), [&](int64_t begin, int64_t end) {
-      for (int64_t b = begin; b < end; ++b)
-        for (size_t j = 0; j < lists[b].size(); ++j) {
-          partner[offset[b] + j] = lists[b][j].second;
-          ++row[lists[b][j].first + 1];  // rows of one body are its own
-        }
-    }, 1);
-    for (int64_t i = 0; i < num_rows; ++i) row[i + 1] += row[i];
-  }
-
-  // Puts (first, p) for the partners p of row i.
-  void put_row(int32_t i, int32_t first, PairBuffer& out) const {
-    const int64_t begin = row[i], end = row[i + 1];
-    out.room(static_cast<size_t>(end - begin));
-    for (int64_t j = begin; j < end; ++j) out.put(first, partner[j], true);
-  }
-};
-
-// The kept pairs within each body, from its boxes in its own frame: a tree over its vertices
-// traversed against one over its triangles, and its edge tree against itself (each pair met
-// once). Rows are surface vertex indices and edges; edge pairs (a, b) have a < b.
-struct SameBodyPairs {
-  PairRows vertex_triangle, edge_edge;
-};
-
-SameBodyPairs same_body_pairs(const Model& m, const std::vector<BodyPrimitives>& prims,
-                              const FrameBoxes& own) {
-  const auto nb = static_cast<int64_t>(m.bodies.size());
-  std::vector<std::vector<IndexPair>> vt(nb), ee(nb);
-  parallel_for(nb, [&](int64_t begin, int64_t end) {
-    BoxTree vertices, triangles, edges;
-    for (int64_t b = begin; b < end; ++b) {
-      const BodyPrimitives& p = prims[b];
-      if (!p.any_free) continue;
-      vertices.build(own.v_lo.data(), own.v_hi.data(), p.sv_begin, p.sv_end);
-      triangles.build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
-      edges.build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
-      vertices.pairs_with(triangles, [&](int32_t i, int32_t t) {
-        if (keep_vertex_triangle(m, m.surface_vertices[i], t)) vt[b].emplace_back(i, t);
-      });
-      edges.self_pairs([&](int32_t e, int32_t f) {
-        if (keep_edge_edge(m, e, f)) ee[b].emplace_back(std::min(e, f), std::max(e, f));
-      });
-      std::sort(vt[b].begin(), vt[b].end());
-      std::sort(ee[b].begin(), ee[b].end());
+  SameBodyBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const FrameBoxes& own) {
+    const auto nb = static_cast<int64_t>(m.bodies.size());
+    std::vector<int32_t> triangle_count(nb, 0), edge_count(nb, 0);
+    triangle_tree.assign(nb, 0);
+    edge_tree.assign(nb, 0);
+    for (int64_t b = 0; b < nb; ++b) {
+      if (!prims[b].any_free) continue;
+      triangle_count[b] = prims[b].t_end - prims[b].t_begin;
+      edge_count[b] = prims[b].e_end - prims[b].e_begin;
+      triangle_tree[b] = triangle_count[b] > kMaxBodyScan;
+      edge_tree[b] = edge_count[b] > kMaxBodyScan;
+      if (triangle_tree[b]) triangle_count[b] = 0;
+      if (edge_tree[b]) edge_count[b] = 0;
     }
-  }, 1);
-  return {PairRows(vt, static_cast<int64_t>(m.surface_vertices.size())),
-          PairRows(ee, static_cast<int64_t>(m.surface_edges.size() / 2))};
-}
+    triangles.layout(triangle_count);
+    edges.layout(edge_count);
+    triangle_trees.resize(nb);
+    edge_trees.resize(nb);
+    parallel_for(nb, [&](int64_t begin, int64_t end) {
+      for (int64_t b = begin; b < end; ++b) {
+        const BodyPrimitives& p = prims[b];
+        for (int32_t t = p.t_begin; t < p.t_begin + triangle_count[b]; ++t)
+          triangles.set(b, t - p.t_begin, &own.t_lo[3 * int64_t{t}], &own.t_hi[3 * int64_t{t}], t);
+        triangles.finish(b);
+        for (int32_t e = p.e_begin; e < p.e_begin + edge_count[b]; ++e)
+          edges.set(b, e - p.e_begin, &own.e_lo[3 * int64_t{e}], &own.e_hi[3 * int64_t{e}], e);
+        edges.finish(b);
+        if (triangle_tree[b]) triangle_trees[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
+        if (edge_tree[b]) edge_trees[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
+      }
+    }, 1);
+  }
+};
 
 }  // namespace
 
@@ -532,11 +462,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
   // lower edge, so only the higher-numbered neighbours' edges.
   const NeighborSubsets tri_near = neighbor_subsets(
-      neighbors, box_columns(world.t_lo, world.t_hi), tri_free,
+      neighbors, world.t_lo, world.t_hi,
       [&](int32_t b) { return std::pair{prims[b].t_begin, prims[b].t_end}; },
       [](int64_t) { return true; });
   const NeighborSubsets edge_near = neighbor_subsets(
-      neighbors, box_columns(world.e_lo, world.e_hi), edge_free,
+      neighbors, world.e_lo, world.e_hi,
       [&](int32_t b) { return std::pair{prims[b].e_begin, prims[b].e_end}; },
       [&](int64_t k) { return neighbors.body[k] > neighbors.owner[k]; });
 
@@ -555,21 +485,32 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         edge_world[b].build(world.e_lo.data(), world.e_hi.data(), prims[b].e_begin, prims[b].e_end);
     }
   }, 1);
-  const SameBodyPairs same_body = same_body_pairs(m, prims, own);
+  const SameBodyBoxes same_body(m, prims, own);
 
+  // A tree query's partners, sorted (trees report in no particular order).
+  auto put_tree_hits = [](const BoxTree& tree, const double* lo, const double* hi, int32_t first,
+                          auto&& keep, PairBuffer& buffer) {
+    const size_t start = buffer.size();
+    tree.query(lo, hi, [&](int32_t p) {
+      buffer.room(1);
+      buffer.put(first, p, keep(p));
+    });
+    buffer.sort_from(start);
+  };
   // A primitive's pairs with neighbour entry k: none unless it overlaps that body's box, else a
   // scan of the subset or, for big subsets, a query of the neighbour's tree.
   auto neighbor_pairs = [&](const NeighborSubsets& subsets, const std::vector<BoxTree>& trees,
                             const std::vector<uint8_t>& partner_free, int32_t k, const double* lo,
                             const double* hi, int32_t first, bool first_free, PairBuffer& buffer) {
     if (!neighbors.overlaps(k, lo, hi)) return;
-    if (!subsets.use_tree[k]) return scan_subset(subsets, k, lo, hi, first, first_free, buffer);
-    const size_t start = buffer.size();
-    trees[neighbors.body[k]].query(lo, hi, [&](int32_t p) {
-      buffer.room(1);
-      buffer.put(first, p, first_free | (partner_free[p] != 0));
-    });
-    buffer.sort_from(start);
+    auto keep = [&](int32_t p) { return first_free | (partner_free[p] != 0); };
+    if (subsets.use_tree[k]) return put_tree_hits(trees[neighbors.body[k]], lo, hi, first, keep, buffer);
+    int32_t* ids = buffer.scratch(subsets.boxes.size(k));
+    const int32_t n = subsets.boxes.scan(k, 0, lo, hi, ids);
+    if (first_free)
+      buffer.put_all(first, ids, n);
+    else
+      buffer.put_kept(first, ids, n, keep);
   };
 
   // Vertex-triangle: each surface vertex against the neighbours below its body, its own body and
@@ -584,7 +525,17 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         const double* hi = &world.v_hi[3 * int64_t{i}];
         for (int32_t k = neighbors.ptr[body]; k < neighbors.above[body]; ++k)
           neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
-        same_body.vertex_triangle.put_row(i, v, buffer);
+        if (prims[body].any_free) {
+          const double* own_lo = &own.v_lo[3 * int64_t{i}];
+          const double* own_hi = &own.v_hi[3 * int64_t{i}];
+          auto keep = [&](int32_t t) { return keep_vertex_triangle(m, v, t); };
+          if (same_body.triangle_tree[body]) {
+            put_tree_hits(same_body.triangle_trees[body], own_lo, own_hi, v, keep, buffer);
+          } else {
+            int32_t* ids = buffer.scratch(same_body.triangles.size(body));
+            buffer.put_kept(v, ids, same_body.triangles.scan(body, 0, own_lo, own_hi, ids), keep);
+          }
+        }
         for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
           neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
       },
@@ -596,7 +547,19 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       ne,
       [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m.vertex_body[m.surface_edges[2 * int64_t{a}]];
-        same_body.edge_edge.put_row(a, a, buffer);
+        if (prims[body].any_free) {
+          const double* own_lo = &own.e_lo[3 * int64_t{a}];
+          const double* own_hi = &own.e_hi[3 * int64_t{a}];
+          if (same_body.edge_tree[body]) {
+            auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m, a, b); };
+            put_tree_hits(same_body.edge_trees[body], own_lo, own_hi, a, keep, buffer);
+          } else {
+            auto keep = [&](int32_t b) { return keep_edge_edge(m, a, b); };
+            int32_t* ids = buffer.scratch(same_body.edges.size(body));
+            const int32_t above_a = a + 1 - prims[body].e_begin;
+            buffer.put_kept(a, ids, same_body.edges.scan(body, above_a, own_lo, own_hi, ids), keep);
+          }
+        }
         const double* lo = &world.e_lo[3 * int64_t{a}];
         const double* hi = &world.e_hi[3 * int64_t{a}];
         for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
