@@ -264,10 +264,11 @@ class PairBuffer {
     room(static_cast<size_t>(n));
     for (int32_t j = 0; j < n; ++j) put(first, ids[j], keep(ids[j]));
   }
-  // Room for the ids of a scan of n boxes (BlockedBoxes::scan).
-  int32_t* scratch(int32_t n) {
-    if (static_cast<size_t>(n + BlockedBoxes::kBlock) > scratch_.size()) scratch_.resize(2 * static_cast<size_t>(n) + 64);
-    return scratch_.data();
+  // Room for the ids of a scan of n boxes (BlockedBoxes::scan); two independent areas.
+  int32_t* scratch(int32_t n, int area = 0) {
+    std::vector<int32_t>& s = scratch_[area];
+    if (static_cast<size_t>(n + BlockedBoxes::kBlock) > s.size()) s.resize(2 * static_cast<size_t>(n) + 64);
+    return s.data();
   }
   size_t size() const { return size_; }
   const IndexPair* data() const { return pairs_.data(); }
@@ -279,7 +280,7 @@ class PairBuffer {
  private:
   std::vector<IndexPair> pairs_;
   size_t size_ = 0;
-  std::vector<int32_t> scratch_;
+  std::vector<int32_t> scratch_[2];
 };
 
 // Runs emit(i, buffer) for every primitive i of [0, n) in parallel chunks, each putting its pairs
@@ -299,27 +300,32 @@ void collect_pairs(int64_t n, Emit&& emit, std::vector<IndexPair>& out) {
   }, 1);
 }
 
-// Coordinate arrays of boxes, one per axis and side: a layout whose loops vectorise.
-struct BoxColumns {
-  std::vector<double> lo[3], hi[3];
-};
+// One frame's boxes of every body's triangles and edges, listed by id (list b: body b).
+struct BodyLists {
+  BlockedBoxes triangles, edges;
 
-BoxColumns box_columns(const std::vector<double>& lower, const std::vector<double>& upper) {
-  BoxColumns c;
-  const auto n = static_cast<int64_t>(lower.size() / 3);
-  for (int d = 0; d < 3; ++d) {
-    c.lo[d].resize(static_cast<size_t>(n));
-    c.hi[d].resize(static_cast<size_t>(n));
-  }
-  parallel_for(n, [&](int64_t begin, int64_t end) {
-    for (int64_t i = begin; i < end; ++i)
-      for (int d = 0; d < 3; ++d) {
-        c.lo[d][i] = lower[3 * i + d];
-        c.hi[d][i] = upper[3 * i + d];
+  BodyLists(const std::vector<BodyPrimitives>& prims, const FrameBoxes& f) {
+    const auto nb = static_cast<int64_t>(prims.size());
+    std::vector<int32_t> triangle_count(nb), edge_count(nb);
+    for (int64_t b = 0; b < nb; ++b) {
+      triangle_count[b] = prims[b].t_end - prims[b].t_begin;
+      edge_count[b] = prims[b].e_end - prims[b].e_begin;
+    }
+    triangles.layout(triangle_count);
+    edges.layout(edge_count);
+    parallel_for(nb, [&](int64_t begin, int64_t end) {
+      for (int64_t b = begin; b < end; ++b) {
+        const BodyPrimitives& p = prims[b];
+        for (int32_t t = p.t_begin; t < p.t_end; ++t)
+          triangles.set(b, t - p.t_begin, &f.t_lo[3 * int64_t{t}], &f.t_hi[3 * int64_t{t}], t);
+        triangles.finish(b);
+        for (int32_t e = p.e_begin; e < p.e_end; ++e)
+          edges.set(b, e - p.e_begin, &f.e_lo[3 * int64_t{e}], &f.e_hi[3 * int64_t{e}], e);
+        edges.finish(b);
       }
-  }, 4096);
-  return c;
-}
+    }, 1);
+  }
+};
 
 // Per primitive of K vertices: whether one of them is free. Primitives of different bodies share
 // no vertex, so for them this is the whole filter of candidates.hpp.
@@ -346,39 +352,40 @@ struct NeighborSubsets {
   std::vector<uint8_t> use_tree;
 };
 
-// range(b) gives body b's primitives [first, last); only entries with wanted(k) get a subset.
-template <typename Range, typename Wanted>
-NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const std::vector<double>& lower,
-                                 const std::vector<double>& upper, Range&& range, Wanted&& wanted) {
-  const BoxColumns boxes = box_columns(lower, upper);
+// body_lists: every body's primitives (world frame) of the kind wanted, boxes lower/upper;
+// only entries with wanted(k) get a subset.
+template <typename Wanted>
+NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedBoxes& body_lists,
+                                 const std::vector<double>& lower, const std::vector<double>& upper,
+                                 Wanted&& wanted) {
   const auto entries = static_cast<int64_t>(neighbors.body.size());
-  auto overlaps_owner = [&](int64_t k, int32_t p) {
-    const double* lo = &neighbors.body_lo[3 * int64_t{neighbors.owner[k]}];
-    const double* hi = &neighbors.body_hi[3 * int64_t{neighbors.owner[k]}];
-    return (boxes.lo[0][p] <= hi[0]) & (lo[0] <= boxes.hi[0][p]) & (boxes.lo[1][p] <= hi[1]) &
-           (lo[1] <= boxes.hi[1][p]) & (boxes.lo[2][p] <= hi[2]) & (lo[2] <= boxes.hi[2][p]);
+  // Scans B's list with A's box into ids; returns the number found.
+  auto find = [&](int64_t k, std::vector<int32_t>& ids) {
+    const int32_t b = neighbors.body[k];
+    ids.resize(static_cast<size_t>(body_lists.size(b) + BlockedBoxes::kBlock));
+    const int64_t owner = neighbors.owner[k];
+    return body_lists.scan(b, 0, &neighbors.body_lo[3 * owner], &neighbors.body_hi[3 * owner], ids.data());
   };
   NeighborSubsets s;
   std::vector<int32_t> size(static_cast<size_t>(entries), 0);
   s.use_tree.assign(static_cast<size_t>(entries), 0);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
+    std::vector<int32_t> ids;
     for (int64_t k = begin; k < end; ++k) {
       if (!wanted(k)) continue;
-      const auto [first, last] = range(neighbors.body[k]);
-      int32_t n = 0;
-      for (int32_t p = first; p < last; ++p) n += overlaps_owner(k, p);
+      const int32_t n = find(k, ids);
       s.use_tree[k] = n > kMaxScan;
       size[k] = s.use_tree[k] ? 0 : n;
     }
   }, 16);
   s.boxes.layout(size);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
+    std::vector<int32_t> ids;
     for (int64_t k = begin; k < end; ++k) {
       if (size[k] == 0) continue;
-      const auto [first, last] = range(neighbors.body[k]);
-      int32_t index = 0;
-      for (int32_t p = first; p < last; ++p)
-        if (overlaps_owner(k, p)) s.boxes.set(k, index++, &lower[3 * int64_t{p}], &upper[3 * int64_t{p}], p);
+      find(k, ids);
+      for (int32_t j = 0; j < size[k]; ++j)
+        s.boxes.set(k, j, &lower[3 * int64_t{ids[j]}], &upper[3 * int64_t{ids[j]}], ids[j]);
       s.boxes.finish(k);
     }
   }, 16);
@@ -402,43 +409,25 @@ void find_vertex_plane(const Model& m, const double* x0, const double* x1, doubl
   }
 }
 
-// Each body's own triangles and edges, boxed in its frame, listed by id (list b: body b) for
-// scans; a body with more than kMaxBodyScan of them gets a tree instead. Only bodies with a free
-// vertex have their own pairs.
-struct SameBodyBoxes {
-  BlockedBoxes triangles, edges;
+// Trees over the bodies whose own triangles (edges) are too many to scan for their own pairs,
+// in the body frame.
+struct SameBodyTrees {
   std::vector<uint8_t> triangle_tree, edge_tree;  // per body: use the tree
-  std::vector<BoxTree> triangle_trees, edge_trees;
+  std::vector<BoxTree> triangles, edges;
 
-  SameBodyBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const FrameBoxes& own) {
-    const auto nb = static_cast<int64_t>(m.bodies.size());
-    std::vector<int32_t> triangle_count(nb, 0), edge_count(nb, 0);
+  SameBodyTrees(const std::vector<BodyPrimitives>& prims, const FrameBoxes& own) {
+    const auto nb = static_cast<int64_t>(prims.size());
     triangle_tree.assign(nb, 0);
     edge_tree.assign(nb, 0);
-    for (int64_t b = 0; b < nb; ++b) {
-      if (!prims[b].any_free) continue;
-      triangle_count[b] = prims[b].t_end - prims[b].t_begin;
-      edge_count[b] = prims[b].e_end - prims[b].e_begin;
-      triangle_tree[b] = triangle_count[b] > kMaxBodyScan;
-      edge_tree[b] = edge_count[b] > kMaxBodyScan;
-      if (triangle_tree[b]) triangle_count[b] = 0;
-      if (edge_tree[b]) edge_count[b] = 0;
-    }
-    triangles.layout(triangle_count);
-    edges.layout(edge_count);
-    triangle_trees.resize(nb);
-    edge_trees.resize(nb);
+    triangles.resize(nb);
+    edges.resize(nb);
     parallel_for(nb, [&](int64_t begin, int64_t end) {
       for (int64_t b = begin; b < end; ++b) {
         const BodyPrimitives& p = prims[b];
-        for (int32_t t = p.t_begin; t < p.t_begin + triangle_count[b]; ++t)
-          triangles.set(b, t - p.t_begin, &own.t_lo[3 * int64_t{t}], &own.t_hi[3 * int64_t{t}], t);
-        triangles.finish(b);
-        for (int32_t e = p.e_begin; e < p.e_begin + edge_count[b]; ++e)
-          edges.set(b, e - p.e_begin, &own.e_lo[3 * int64_t{e}], &own.e_hi[3 * int64_t{e}], e);
-        edges.finish(b);
-        if (triangle_tree[b]) triangle_trees[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
-        if (edge_tree[b]) edge_trees[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
+        triangle_tree[b] = p.any_free && p.t_end - p.t_begin > kMaxBodyScan;
+        edge_tree[b] = p.any_free && p.e_end - p.e_begin > kMaxBodyScan;
+        if (triangle_tree[b]) triangles[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
+        if (edge_tree[b]) edges[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
       }
     }, 1);
   }
@@ -461,13 +450,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   const std::vector<uint8_t> edge_free = free_flags<2>(m, m.surface_edges.data(), ne);
   // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
   // lower edge, so only the higher-numbered neighbours' edges.
-  const NeighborSubsets tri_near = neighbor_subsets(
-      neighbors, world.t_lo, world.t_hi,
-      [&](int32_t b) { return std::pair{prims[b].t_begin, prims[b].t_end}; },
-      [](int64_t) { return true; });
+  const BodyLists world_lists(prims, world);
+  const NeighborSubsets tri_near = neighbor_subsets(neighbors, world_lists.triangles, world.t_lo,
+                                                    world.t_hi, [](int64_t) { return true; });
   const NeighborSubsets edge_near = neighbor_subsets(
-      neighbors, world.e_lo, world.e_hi,
-      [&](int32_t b) { return std::pair{prims[b].e_begin, prims[b].e_end}; },
+      neighbors, world_lists.edges, world.e_lo, world.e_hi,
       [&](int64_t k) { return neighbors.body[k] > neighbors.owner[k]; });
 
   // Trees over the world boxes of the neighbours too many to scan.
@@ -485,7 +472,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         edge_world[b].build(world.e_lo.data(), world.e_hi.data(), prims[b].e_begin, prims[b].e_end);
     }
   }, 1);
-  const SameBodyBoxes same_body(m, prims, own);
+  // Same-body pairs scan the body's own lists (in its frame), or its tree when too long.
+  const std::unique_ptr<BodyLists> moving_lists =
+      boxes.moving ? std::make_unique<BodyLists>(prims, own) : nullptr;
+  const BodyLists& own_lists = moving_lists ? *moving_lists : world_lists;
+  const SameBodyTrees same_body(prims, own);
 
   // A tree query's partners, sorted (trees report in no particular order).
   auto put_tree_hits = [](const BoxTree& tree, const double* lo, const double* hi, int32_t first,
@@ -530,10 +521,10 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
           const double* own_hi = &own.v_hi[3 * int64_t{i}];
           auto keep = [&](int32_t t) { return keep_vertex_triangle(m, v, t); };
           if (same_body.triangle_tree[body]) {
-            put_tree_hits(same_body.triangle_trees[body], own_lo, own_hi, v, keep, buffer);
+            put_tree_hits(same_body.triangles[body], own_lo, own_hi, v, keep, buffer);
           } else {
-            int32_t* ids = buffer.scratch(same_body.triangles.size(body));
-            buffer.put_kept(v, ids, same_body.triangles.scan(body, 0, own_lo, own_hi, ids), keep);
+            int32_t* ids = buffer.scratch(own_lists.triangles.size(body));
+            buffer.put_kept(v, ids, own_lists.triangles.scan(body, 0, own_lo, own_hi, ids), keep);
           }
         }
         for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
@@ -552,12 +543,12 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
           const double* own_hi = &own.e_hi[3 * int64_t{a}];
           if (same_body.edge_tree[body]) {
             auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m, a, b); };
-            put_tree_hits(same_body.edge_trees[body], own_lo, own_hi, a, keep, buffer);
+            put_tree_hits(same_body.edges[body], own_lo, own_hi, a, keep, buffer);
           } else {
             auto keep = [&](int32_t b) { return keep_edge_edge(m, a, b); };
-            int32_t* ids = buffer.scratch(same_body.edges.size(body));
+            int32_t* ids = buffer.scratch(own_lists.edges.size(body));
             const int32_t above_a = a + 1 - prims[body].e_begin;
-            buffer.put_kept(a, ids, same_body.edges.scan(body, above_a, own_lo, own_hi, ids), keep);
+            buffer.put_kept(a, ids, own_lists.edges.scan(body, above_a, own_lo, own_hi, ids), keep);
           }
         }
         const double* lo = &world.e_lo[3 * int64_t{a}];
