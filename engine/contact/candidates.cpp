@@ -166,14 +166,13 @@ struct NeighborBodies {
   std::vector<int32_t> above;   // body A's first entry with a neighbour numbered above A
   std::vector<int32_t> owner;   // entry k: A
   std::vector<int32_t> body;    // entry k: the neighbour B, increasing within A's entries
-  std::vector<double> box;      // entry k: B's box (6 numbers: lower, upper)
+  BlockedBoxes boxes;           // list A: the boxes of A's neighbours, ids: their entries k
   std::vector<double> body_lo, body_hi;  // (num_bodies x 3) every body's box
 
-  // Whether box [lo, hi] overlaps the neighbour of entry k.
-  bool overlaps(int32_t k, const double* lo, const double* hi) const {
-    const double* b = &box[6 * int64_t{k}];
-    return (b[0] <= hi[0]) & (lo[0] <= b[3]) & (b[1] <= hi[1]) & (lo[1] <= b[4]) &
-           (b[2] <= hi[2]) & (lo[2] <= b[5]);
+  // Writes the entries of A, from its `from`-th on, whose neighbour's box overlaps [lo, hi],
+  // in order, to out; returns their number.
+  int32_t near(int32_t a, int32_t from, const double* lo, const double* hi, int32_t* out) const {
+    return boxes.scan(a, from, lo, hi, out);
   }
 };
 
@@ -223,21 +222,24 @@ NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>
   out.above.assign(size_t(nb), 0);
   out.owner.resize(both.size());
   out.body.resize(both.size());
-  out.box.resize(6 * both.size());
   for (size_t k = 0; k < both.size(); ++k) {
     const auto [a, b] = both[k];
     ++out.ptr[a + 1];
     out.above[a] += b < a;
     out.owner[k] = a;
     out.body[k] = b;
-    for (int d = 0; d < 3; ++d) {
-      out.box[6 * k + d] = lo[3 * size_t(b) + d];
-      out.box[6 * k + 3 + d] = hi[3 * size_t(b) + d];
-    }
   }
+  std::vector<int32_t> count(static_cast<size_t>(nb));
   for (int32_t b = 0; b < nb; ++b) {
+    count[b] = out.ptr[b + 1];
     out.ptr[b + 1] += out.ptr[b];
     out.above[b] += out.ptr[b];
+  }
+  out.boxes.layout(count);
+  for (int32_t a = 0; a < nb; ++a) {
+    for (int32_t k = out.ptr[a]; k < out.ptr[a + 1]; ++k)
+      out.boxes.set(a, k - out.ptr[a], &lo[3 * size_t(out.body[k])], &hi[3 * size_t(out.body[k])], k);
+    out.boxes.finish(a);
   }
   return out;
 }
@@ -488,12 +490,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
     });
     buffer.sort_from(start);
   };
-  // A primitive's pairs with neighbour entry k: none unless it overlaps that body's box, else a
-  // scan of the subset or, for big subsets, a query of the neighbour's tree.
+  // A primitive's pairs with neighbour entry k (whose body's box it overlaps): a scan of the
+  // subset or, for big subsets, a query of the neighbour's tree.
   auto neighbor_pairs = [&](const NeighborSubsets& subsets, const std::vector<BoxTree>& trees,
                             const std::vector<uint8_t>& partner_free, int32_t k, const double* lo,
                             const double* hi, int32_t first, bool first_free, PairBuffer& buffer) {
-    if (!neighbors.overlaps(k, lo, hi)) return;
     auto keep = [&](int32_t p) { return first_free | (partner_free[p] != 0); };
     if (subsets.use_tree[k]) return put_tree_hits(trees[neighbors.body[k]], lo, hi, first, keep, buffer);
     int32_t* ids = buffer.scratch(subsets.boxes.size(k));
@@ -514,8 +515,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         const bool v_free = is_free(m, v);
         const double* lo = &world.v_lo[3 * int64_t{i}];
         const double* hi = &world.v_hi[3 * int64_t{i}];
-        for (int32_t k = neighbors.ptr[body]; k < neighbors.above[body]; ++k)
-          neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
+        int32_t* near = buffer.scratch(neighbors.ptr[body + 1] - neighbors.ptr[body], 1);
+        const int32_t near_count = neighbors.near(body, 0, lo, hi, near);
+        int32_t j = 0;
+        for (; j < near_count && near[j] < neighbors.above[body]; ++j)
+          neighbor_pairs(tri_near, tri_world, tri_free, near[j], lo, hi, v, v_free, buffer);
         if (prims[body].any_free) {
           const double* own_lo = &own.v_lo[3 * int64_t{i}];
           const double* own_hi = &own.v_hi[3 * int64_t{i}];
@@ -527,8 +531,8 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
             buffer.put_kept(v, ids, own_lists.triangles.scan(body, 0, own_lo, own_hi, ids), keep);
           }
         }
-        for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
-          neighbor_pairs(tri_near, tri_world, tri_free, k, lo, hi, v, v_free, buffer);
+        for (; j < near_count; ++j)
+          neighbor_pairs(tri_near, tri_world, tri_free, near[j], lo, hi, v, v_free, buffer);
       },
       out.vertex_triangle);
 
@@ -553,8 +557,11 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         }
         const double* lo = &world.e_lo[3 * int64_t{a}];
         const double* hi = &world.e_hi[3 * int64_t{a}];
-        for (int32_t k = neighbors.above[body]; k < neighbors.ptr[body + 1]; ++k)
-          neighbor_pairs(edge_near, edge_world, edge_free, k, lo, hi, a, edge_free[a] != 0, buffer);
+        int32_t* near = buffer.scratch(neighbors.ptr[body + 1] - neighbors.ptr[body], 1);
+        const int32_t above = neighbors.above[body] - neighbors.ptr[body];
+        const int32_t near_count = neighbors.near(body, above, lo, hi, near);
+        for (int32_t j = 0; j < near_count; ++j)
+          neighbor_pairs(edge_near, edge_world, edge_free, near[j], lo, hi, a, edge_free[a] != 0, buffer);
       },
       out.edge_edge);
 
