@@ -30,8 +30,8 @@ constexpr int64_t kQueryGrain = 512;
 // Longest lists scanned rather than queried through a tree: a neighbour's subset, and a body's
 // own triangles or edges. A scan tests 64 boxes per vector compare of block boxes, so it stays
 // cheaper than a tree query up to a few thousand boxes.
-constexpr int32_t kMaxScan = 4096;
-constexpr int32_t kMaxBodyScan = 4096;
+constexpr int32_t kMaxScan = 2048;
+constexpr int32_t kMaxBodyScan = 2048;
 
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 

@@ -37,6 +37,20 @@ Scene many_bodies() {
   return scene;
 }
 
+// Two plates of 32 x 32 cells, one resting 4 mm above the other: more than 2048 triangles and
+// edges per body and per face, so same-body pairs and pairs across the gap take the tree paths
+// that bodies too big to scan go through.
+Scene two_plates() {
+  return test::scene_from_json(R"({
+    "gravity": [0, -9.81, 0], "time": { "dt": 0.01 }, "contact": { "dhat": 0.01 },
+    "materials": { "a": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [
+      { "box": { "size": [1, 0.05, 1], "cells": [32, 1, 32] }, "material": "a" },
+      { "box": { "size": [1, 0.05, 1], "cells": [32, 1, 32] }, "material": "a",
+        "translate": [0.01, 0.054, 0.0] } ]
+  })", "candidates_two_plates");
+}
+
 // x0 -> x1: every free body moves by its own large translation (the co-moving frame's case) and
 // jiggles; held vertices stay.
 std::vector<double> moved(const Model& model, const std::vector<double>& x0, unsigned seed) {
@@ -97,6 +111,28 @@ TEST_CASE("contact candidates equal the brute force, static and swept, on 1 and 
         CHECK((model.dirichlet[p.first] < 0 || model.dirichlet[t[0]] < 0 ||
                model.dirichlet[t[1]] < 0 || model.dirichlet[t[2]] < 0));
       }
+    }
+  }
+}
+
+TEST_CASE("contact candidates of bodies too big to scan equal the brute force") {
+  const Scene scene = two_plates();
+  const Model& model = scene.model;
+  REQUIRE(model.bodies.size() == 2);
+  CHECK(model.bodies[0].triangle_count > 4000);
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-4, 5);
+  const std::vector<double> x1 = moved(model, x0, 6);
+  for (const double* end : {static_cast<const double*>(nullptr), x1.data()}) {
+    CAPTURE(end != nullptr);
+    ContactCandidates reference;
+    find_contact_candidates_brute_force(model, x0.data(), end, 0.005, reference);
+    CHECK(!reference.vertex_triangle.empty());
+    CHECK(!reference.edge_edge.empty());
+    for (int threads : {1, 2}) {
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      ContactCandidates fast;
+      find_contact_candidates(model, x0.data(), end, 0.005, fast);
+      check_equal(fast, reference);
     }
   }
 }
