@@ -1,9 +1,9 @@
 // Lists of boxes kept in a given order, for box queries whose hits must come out in that order.
 //
-// Why not a tree: for a few thousand boxes a linear scan with vector compares beats a tree query
-// (measured on one cube of 5^3 cells: 450 edge boxes, one query per edge, 0.44 us per tree query,
-// about 0.05 us per scan), and a scan reports its hits in list order, so a caller that lists
-// boxes by id gets sorted hits with no sort.
+// Why not a tree: up to a few thousand boxes a linear scan with vector compares beats a tree
+// query (measured on one cube of 5^3 cells, its 450 edge boxes queried with each of them:
+// 0.44 us per BoxTree query, 0.045 us per scan), and a scan reports its hits in list order, so
+// a caller that lists boxes by id gets sorted hits with no sort.
 //
 // Layout: one array per coordinate and side. Each list is padded with empty boxes (lower +inf,
 // upper -inf, overlapping nothing) to whole blocks of kBlock boxes, so a block is one vector

@@ -1,10 +1,19 @@
 // Broad phase of contact (see candidates.hpp).
 //
 // Two levels. Bodies first: the boxes of whole bodies go through Embree (bvh/broad_phase.hpp),
-// which gives the pairs of bodies that can touch. Then primitives: every body gets a BoxTree over
-// its triangles and one over its edges, and every surface vertex (edge) queries the trees of its
-// own body and of the bodies next to it. A primitive's partners come out together, so sorting
-// them locally and concatenating in primitive order gives the sorted list directly.
+// which gives the pairs of bodies that can touch. Then primitives, by linear scans of box lists
+// kept in id order (bvh/blocked_boxes.hpp), which report their hits already sorted:
+//   * each body's neighbours: a primitive finds the neighbour bodies its box overlaps;
+//   * for each (body A, neighbour B): the subset of B's primitives that overlap A's box, found
+//     once. Only those can meet a primitive of A, and for bodies side by side they are few (a
+//     face's worth), so each primitive of A scans them;
+//   * each body's own primitives, in its frame, for same-body pairs.
+// Taking the neighbours below A, then A itself, then the neighbours above (ids are contiguous
+// per body, in body order) gives each primitive's partners in increasing order, and chunks of
+// primitives concatenated in order give the sorted list: no sort at all. Lists longer than a few
+// thousand boxes (big bodies) are queried through a BoxTree instead, and those hits are sorted
+// per primitive. On 125 cubes of 5^3 cells this took the broad phase from 100 ms to 17 ms on
+// one thread.
 //
 // Same-body pairs are tested in the body's co-moving frame: the body's mean displacement
 // x1 - x0 is taken out of the end positions first. Translating both primitives of a pair by the
