@@ -1,7 +1,9 @@
 // Contact candidates (engine/contact/candidates) against the O(n^2) reference on the same boxes,
 // static and swept, plus the property the co-moving frame of same-body pairs must keep: every
-// pair that comes within 2 r at some time of the motion is a candidate of the sweep.
+// pair that comes within 2 r at some time of the motion is a candidate of the sweep. Also the
+// scans of bvh/blocked_boxes.hpp the broad phase is built on.
 #include "engine/contact/candidates.hpp"
+#include "bvh/blocked_boxes.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -175,4 +177,45 @@ TEST_CASE("a swept candidate list holds every pair close at some time of the mot
   find_contact_candidates(model, x0.data(), nullptr, r, at_start);
   MESSAGE("same-body pairs: swept ", same_body_pairs(swept), ", at the start ", same_body_pairs(at_start));
   CHECK(same_body_pairs(swept) < 3 * same_body_pairs(at_start));
+}
+
+TEST_CASE("a blocked box list scan reports the overlapping boxes from an index on, in order") {
+  // The scans behind the candidates: lists of every length around the block size, random boxes
+  // and queries, every start index; against a loop over the boxes.
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> corner(0.0, 1.0), size(0.0, 0.1);
+  const std::vector<int32_t> sizes = {0, 1, 7, 8, 9, 63, 64, 65, 300};
+  std::vector<std::vector<double>> lower(sizes.size()), upper(sizes.size());
+  BlockedBoxes lists;
+  lists.layout(sizes);
+  for (size_t l = 0; l < sizes.size(); ++l) {
+    for (int32_t i = 0; i < sizes[l]; ++i) {
+      for (int d = 0; d < 3; ++d) {
+        lower[l].push_back(corner(rng));
+        upper[l].push_back(lower[l].back() + size(rng));
+      }
+      lists.set(static_cast<int32_t>(l), i, &lower[l][3 * i], &upper[l][3 * i], 1000 * static_cast<int32_t>(l) + i);
+    }
+    lists.finish(static_cast<int32_t>(l));
+  }
+  std::vector<int32_t> found(300 + BlockedBoxes::kBlock);
+  int64_t hits = 0;
+  for (int q = 0; q < 200; ++q) {
+    double lo[3], hi[3];
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = corner(rng);
+      hi[d] = lo[d] + 3.0 * size(rng);
+    }
+    for (size_t l = 0; l < sizes.size(); ++l)
+      for (int32_t from = 0; from <= sizes[l]; ++from) {
+        std::vector<int32_t> expected;
+        for (int32_t i = from; i < sizes[l]; ++i)
+          if (boxes_overlap(lower[l].data(), upper[l].data(), i, lo, hi, 0))
+            expected.push_back(1000 * static_cast<int32_t>(l) + i);
+        const int32_t n = lists.scan(static_cast<int32_t>(l), from, lo, hi, found.data());
+        REQUIRE(std::vector<int32_t>(found.begin(), found.begin() + n) == expected);
+        hits += n;
+      }
+  }
+  CHECK(hits > 1000);
 }
