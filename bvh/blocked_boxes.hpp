@@ -17,6 +17,7 @@
 #include <bit>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 #if defined(__AVX512F__)
 #include <immintrin.h>
@@ -28,23 +29,25 @@ class BlockedBoxes {
  public:
   static constexpr int kBlock = 8;
 
-  // Lays out lists of the given sizes, every box empty; then set() fills them (in parallel if
-  // wanted) and finish() computes the block boxes.
+  // Lays out lists of the given sizes; then set() must fill every box of each list and
+  // finish() complete it (lists are independent: in parallel if wanted). The arrays stay
+  // uninitialised until then, so that no serial pass writes them all first.
   void layout(const std::vector<int32_t>& sizes) {
     first_block_.assign(sizes.size() + 1, 0);
     size_.assign(sizes.begin(), sizes.end());
     for (size_t l = 0; l < sizes.size(); ++l)
       first_block_[l + 1] = first_block_[l] + (sizes[l] + kBlock - 1) / kBlock;
-    const auto slots = static_cast<size_t>(first_block_.back() * kBlock);
+    const int64_t blocks = first_block_.back();
     // Block boxes are read 8 blocks at a time: pad them past the last block.
-    const auto blocks = static_cast<size_t>(first_block_.back() + kBlock);
     for (int d = 0; d < 3; ++d) {
-      lo_[d].assign(slots, kEmptyLower);
-      hi_[d].assign(slots, kEmptyUpper);
-      block_lo_[d].assign(blocks, kEmptyLower);
-      block_hi_[d].assign(blocks, kEmptyUpper);
+      lo_[d] = std::make_unique_for_overwrite<double[]>(blocks * kBlock);
+      hi_[d] = std::make_unique_for_overwrite<double[]>(blocks * kBlock);
+      block_lo_[d] = std::make_unique_for_overwrite<double[]>(blocks + kBlock);
+      block_hi_[d] = std::make_unique_for_overwrite<double[]>(blocks + kBlock);
+      std::fill_n(&block_lo_[d][blocks], kBlock, kEmptyLower);
+      std::fill_n(&block_hi_[d][blocks], kBlock, kEmptyUpper);
     }
-    id_.assign(slots, 0);
+    id_ = std::make_unique_for_overwrite<int32_t[]>(blocks * kBlock);
   }
 
   // Box `index` of `list`.
@@ -57,9 +60,17 @@ class BlockedBoxes {
     id_[slot] = id;
   }
 
-  // The block boxes of list `list` (call once per list after its set()s; lists are independent).
+  // Pads the last block of `list` with empty boxes and computes its block boxes.
   void finish(int32_t list) {
-    for (int64_t b = first_block_[list]; b < first_block_[list + 1]; ++b)
+    const int64_t first = first_block_[list], last = first_block_[list + 1];
+    for (int64_t slot = first * kBlock + size_[list]; slot < last * kBlock; ++slot) {
+      for (int d = 0; d < 3; ++d) {
+        lo_[d][slot] = kEmptyLower;
+        hi_[d][slot] = kEmptyUpper;
+      }
+      id_[slot] = 0;
+    }
+    for (int64_t b = first; b < last; ++b)
       for (int d = 0; d < 3; ++d) {
         block_lo_[d][b] = *std::min_element(&lo_[d][b * kBlock], &lo_[d][b * kBlock] + kBlock);
         block_hi_[d][b] = *std::max_element(&hi_[d][b * kBlock], &hi_[d][b * kBlock] + kBlock);
@@ -79,9 +90,9 @@ class BlockedBoxes {
 
   std::vector<int64_t> first_block_;  // list l: blocks [first_block_[l], first_block_[l + 1])
   std::vector<int32_t> size_;
-  std::vector<double> lo_[3], hi_[3];  // per slot (block b: slots [8 b, 8 b + 8))
-  std::vector<int32_t> id_;
-  std::vector<double> block_lo_[3], block_hi_[3];  // per block
+  std::unique_ptr<double[]> lo_[3], hi_[3];  // per slot (block b: slots [8 b, 8 b + 8))
+  std::unique_ptr<int32_t[]> id_;
+  std::unique_ptr<double[]> block_lo_[3], block_hi_[3];  // per block
 };
 
 inline int32_t BlockedBoxes::scan(int32_t list, int32_t from, const double* lower,
@@ -94,7 +105,7 @@ inline int32_t BlockedBoxes::scan(int32_t list, int32_t from, const double* lowe
   static_assert(kBlock == 8);
   const __m512d qlo[3] = {_mm512_set1_pd(lower[0]), _mm512_set1_pd(lower[1]), _mm512_set1_pd(lower[2])};
   const __m512d qhi[3] = {_mm512_set1_pd(upper[0]), _mm512_set1_pd(upper[1]), _mm512_set1_pd(upper[2])};
-  auto overlapping = [&](const std::vector<double>* lo, const std::vector<double>* hi, int64_t at,
+  auto overlapping = [&](const std::unique_ptr<double[]>* lo, const std::unique_ptr<double[]>* hi, int64_t at,
                          __mmask8 lanes) {
     for (int d = 0; d < 3; ++d) {
       lanes = _mm512_mask_cmp_pd_mask(lanes, _mm512_loadu_pd(&lo[d][at]), qhi[d], _CMP_LE_OQ);
@@ -115,7 +126,7 @@ inline int32_t BlockedBoxes::scan(int32_t list, int32_t from, const double* lowe
     }
   }
 #else
-  auto overlaps = [&](const std::vector<double>* lo, const std::vector<double>* hi, int64_t at) {
+  auto overlaps = [&](const std::unique_ptr<double[]>* lo, const std::unique_ptr<double[]>* hi, int64_t at) {
     bool hit = true;
     for (int d = 0; d < 3; ++d) hit &= (lo[d][at] <= upper[d]) & (lower[d] <= hi[d][at]);
     return hit;

@@ -370,33 +370,30 @@ NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedB
                                  const std::vector<double>& lower, const std::vector<double>& upper,
                                  Wanted&& wanted) {
   const auto entries = static_cast<int64_t>(neighbors.body.size());
-  // Scans B's list with A's box into ids; returns the number found.
-  auto find = [&](int64_t k, std::vector<int32_t>& ids) {
-    const int32_t b = neighbors.body[k];
-    ids.resize(static_cast<size_t>(body_lists.size(b) + BlockedBoxes::kBlock));
-    const int64_t owner = neighbors.owner[k];
-    return body_lists.scan(b, 0, &neighbors.body_lo[3 * owner], &neighbors.body_hi[3 * owner], ids.data());
-  };
   NeighborSubsets s;
+  std::vector<std::vector<int32_t>> found(static_cast<size_t>(entries));  // B's ids, in order
   std::vector<int32_t> size(static_cast<size_t>(entries), 0);
   s.use_tree.assign(static_cast<size_t>(entries), 0);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
-    std::vector<int32_t> ids;
     for (int64_t k = begin; k < end; ++k) {
       if (!wanted(k)) continue;
-      const int32_t n = find(k, ids);
-      s.use_tree[k] = n > kMaxScan;
-      size[k] = s.use_tree[k] ? 0 : n;
+      const int32_t b = neighbors.body[k];
+      const int64_t owner = neighbors.owner[k];
+      std::vector<int32_t>& ids = found[k];
+      ids.resize(static_cast<size_t>(body_lists.size(b) + BlockedBoxes::kBlock));
+      ids.resize(static_cast<size_t>(body_lists.scan(b, 0, &neighbors.body_lo[3 * owner],
+                                                     &neighbors.body_hi[3 * owner], ids.data())));
+      s.use_tree[k] = ids.size() > size_t{kMaxScan};
+      size[k] = s.use_tree[k] ? 0 : static_cast<int32_t>(ids.size());
     }
   }, 16);
   s.boxes.layout(size);
   parallel_for(entries, [&](int64_t begin, int64_t end) {
-    std::vector<int32_t> ids;
     for (int64_t k = begin; k < end; ++k) {
-      if (size[k] == 0) continue;
-      find(k, ids);
-      for (int32_t j = 0; j < size[k]; ++j)
-        s.boxes.set(k, j, &lower[3 * int64_t{ids[j]}], &upper[3 * int64_t{ids[j]}], ids[j]);
+      for (int32_t j = 0; j < size[k]; ++j) {
+        const int64_t p = found[k][j];
+        s.boxes.set(k, j, &lower[3 * p], &upper[3 * p], found[k][j]);
+      }
       s.boxes.finish(k);
     }
   }, 16);
