@@ -26,7 +26,6 @@
 #include "engine/parallel.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <limits>
 #include <memory>
 
@@ -44,7 +43,7 @@ constexpr int32_t kMaxBodyScan = 2048;
 
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 
-// The filters of candidates.hpp, shared by the tree and the brute-force paths. Written with
+// The filters of candidates.hpp, shared by the fast and the brute-force paths. Written with
 // bitwise operators: they run on every box overlap, and whether a pair passes is unpredictable.
 bool keep_vertex_triangle(const Model& m, int32_t v, int32_t t) {
   const int32_t* tri = &m.surface_triangles[3 * int64_t{t}];
