@@ -10,9 +10,9 @@
 //   * each body's own primitives, in its frame, for same-body pairs.
 // Taking the neighbours below A, then A itself, then the neighbours above (ids are contiguous
 // per body, in body order) gives each primitive's partners in increasing order, and chunks of
-// primitives concatenated in order give the sorted list: no sort at all. Lists longer than a few
-// thousand boxes (big bodies) are queried through a BoxTree instead, and those hits are sorted
-// per primitive. On 125 cubes of 5^3 cells this took the broad phase from 100 ms to 17 ms on
+// primitives concatenated in order give the sorted list: no sort at all. Lists longer than 2048
+// boxes (big bodies) are queried through a BoxTree instead, and those hits are sorted per
+// primitive. On 125 cubes of 5^3 cells this took the broad phase from 100 ms to 17 ms on
 // one thread.
 //
 // Same-body pairs are tested in the body's co-moving frame: the body's mean displacement
