@@ -1,10 +1,19 @@
 // Broad phase of contact (see candidates.hpp).
 //
 // Two levels. Bodies first: the boxes of whole bodies go through Embree (bvh/broad_phase.hpp),
-// which gives the pairs of bodies that can touch. Then primitives: every body gets a BoxTree over
-// its triangles and one over its edges, and every surface vertex (edge) queries the trees of its
-// own body and of the bodies next to it. A primitive's partners come out together, so sorting
-// them locally and concatenating in primitive order gives the sorted list directly.
+// which gives the pairs of bodies that can touch. Then primitives, by linear scans of box lists
+// kept in id order (bvh/blocked_boxes.hpp), which report their hits already sorted:
+//   * each body's neighbours: a primitive finds the neighbour bodies its box overlaps;
+//   * for each (body A, neighbour B): the subset of B's primitives that overlap A's box, found
+//     once. Only those can meet a primitive of A, and for bodies side by side they are few (a
+//     face's worth), so each primitive of A scans them;
+//   * each body's own primitives, in its frame, for same-body pairs.
+// Taking the neighbours below A, then A itself, then the neighbours above (ids are contiguous
+// per body, in body order) gives each primitive's partners in increasing order, and chunks of
+// primitives concatenated in order give the sorted list: no sort at all. Lists longer than 2048
+// boxes (big bodies) are queried through a BoxTree instead, and those hits are sorted per
+// primitive. On 125 cubes of 5^3 cells this took the broad phase from 100 ms to 17 ms on
+// one thread.
 //
 // Same-body pairs are tested in the body's co-moving frame: the body's mean displacement
 // x1 - x0 is taken out of the end positions first. Translating both primitives of a pair by the
@@ -12,6 +21,7 @@
 // from pairing every primitive with every other one along its path.
 #include "engine/contact/candidates.hpp"
 
+#include "bvh/blocked_boxes.hpp"
 #include "bvh/box_tree.hpp"
 #include "engine/parallel.hpp"
 
@@ -25,10 +35,15 @@ namespace {
 
 // Primitives per parallel chunk of the query loops.
 constexpr int64_t kQueryGrain = 512;
+// Longest lists scanned rather than queried through a tree: a neighbour's subset, and a body's
+// own triangles or edges. A scan tests 64 boxes per vector compare of block boxes, so it stays
+// cheaper than a tree query up to a few thousand boxes.
+constexpr int32_t kMaxScan = 2048;
+constexpr int32_t kMaxBodyScan = 2048;
 
 bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
 
-// The filters of candidates.hpp, shared by the tree and the brute-force paths. Written with
+// The filters of candidates.hpp, shared by the fast and the brute-force paths. Written with
 // bitwise operators: they run on every box overlap, and whether a pair passes is unpredictable.
 bool keep_vertex_triangle(const Model& m, int32_t v, int32_t t) {
   const int32_t* tri = &m.surface_triangles[3 * int64_t{t}];
@@ -46,24 +61,6 @@ bool keep_edge_edge(const Model& m, int32_t a, int32_t b) {
       is_free(m, ea[0]) | is_free(m, ea[1]) | is_free(m, eb[0]) | is_free(m, eb[1]);
   return disjoint & any_free;
 }
-
-// One primitive's partners. add() stores every id and only advances past the kept ones, so the
-// filter costs no branch.
-class Partners {
- public:
-  void clear() { size_ = 0; }
-  void add(int32_t id, bool keep) {
-    if (size_ == ids_.size()) ids_.resize(2 * ids_.size() + 64);
-    ids_[size_] = id;
-    size_ += keep;
-  }
-  int32_t* begin() { return ids_.data(); }
-  int32_t* end() { return ids_.data() + size_; }
-
- private:
-  std::vector<int32_t> ids_;
-  size_t size_ = 0;
-};
 
 // Per body: the mean of x1 - x0 over its vertices (zero without x1).
 std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0, const double* x1) {
@@ -169,14 +166,32 @@ std::vector<BodyPrimitives> body_primitives(const Model& m) {
   return out;
 }
 
-// For every body, the other bodies whose world boxes overlap its own (CSR, sorted) and their
-// boxes (6 per entry: lower, upper), found by Embree over the body boxes. A body's box is the union of its surface vertices' boxes, which
-// contain its edges' and triangles'. Pairs of two bodies without a free vertex are left out.
-void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
-                     const FrameBoxes& world, std::vector<int32_t>& ptr,
-                     std::vector<int32_t>& neighbors, std::vector<double>& neighbor_boxes) {
+// The pairs of bodies whose world boxes overlap, as a CSR over bodies (found by Embree over the
+// body boxes). A body's box is the union of its surface vertices' boxes, which contain its edges'
+// and triangles'. Pairs of two bodies without a free vertex are left out.
+struct NeighborBodies {
+  std::vector<int32_t> ptr;     // body A's entries: [ptr[A], ptr[A + 1])
+  std::vector<int32_t> above;   // body A's first entry with a neighbour numbered above A
+  std::vector<int32_t> owner;   // entry k: A
+  std::vector<int32_t> body;    // entry k: the neighbour B, increasing within A's entries
+  BlockedBoxes boxes;           // list A: the boxes of A's neighbours, ids: their entries k
+  std::vector<double> body_lo, body_hi;  // (num_bodies x 3) every body's box
+
+  // Writes the entries of A, from its `from`-th on, whose neighbour's box overlaps [lo, hi],
+  // in order, to out; returns their number.
+  int32_t near(int32_t a, int32_t from, const double* lo, const double* hi, int32_t* out) const {
+    return boxes.scan(a, from, lo, hi, out);
+  }
+};
+
+NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
+                               const FrameBoxes& world) {
   const auto nb = static_cast<int32_t>(m.bodies.size());
-  std::vector<double> lo(3 * size_t(nb)), hi(3 * size_t(nb));
+  NeighborBodies out;
+  std::vector<double>& lo = out.body_lo;
+  std::vector<double>& hi = out.body_hi;
+  lo.resize(3 * size_t(nb));
+  hi.resize(3 * size_t(nb));
   parallel_for(nb, [&](int64_t begin, int64_t end) {
     for (int64_t b = begin; b < end; ++b) {
       for (int d = 0; d < 3; ++d) {
@@ -202,7 +217,6 @@ void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
   std::vector<IndexPair> pairs =
       self_overlapping_pairs(slo.data(), shi.data(), static_cast<int32_t>(with_surface.size()));
 
-  std::vector<int32_t> count(size_t(nb) + 1, 0);
   std::vector<IndexPair> both;
   both.reserve(2 * pairs.size());
   for (const IndexPair& p : pairs) {
@@ -212,44 +226,177 @@ void neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
     both.emplace_back(b, a);
   }
   std::sort(both.begin(), both.end());
-  ptr.assign(size_t(nb) + 1, 0);
-  neighbors.resize(both.size());
-  neighbor_boxes.resize(6 * both.size());
+  out.ptr.assign(size_t(nb) + 1, 0);
+  out.above.assign(size_t(nb), 0);
+  out.owner.resize(both.size());
+  out.body.resize(both.size());
   for (size_t k = 0; k < both.size(); ++k) {
-    ++ptr[both[k].first + 1];
-    const int32_t b = both[k].second;
-    neighbors[k] = b;
-    for (int d = 0; d < 3; ++d) {
-      neighbor_boxes[6 * k + d] = lo[3 * size_t(b) + d];
-      neighbor_boxes[6 * k + 3 + d] = hi[3 * size_t(b) + d];
-    }
+    const auto [a, b] = both[k];
+    ++out.ptr[a + 1];
+    out.above[a] += b < a;
+    out.owner[k] = a;
+    out.body[k] = b;
   }
-  for (int32_t b = 0; b < nb; ++b) ptr[b + 1] += ptr[b];
+  std::vector<int32_t> count(static_cast<size_t>(nb));
+  for (int32_t b = 0; b < nb; ++b) {
+    count[b] = out.ptr[b + 1];
+    out.ptr[b + 1] += out.ptr[b];
+    out.above[b] += out.ptr[b];
+  }
+  out.boxes.layout(count);
+  for (int32_t a = 0; a < nb; ++a) {
+    for (int32_t k = out.ptr[a]; k < out.ptr[a + 1]; ++k)
+      out.boxes.set(a, k - out.ptr[a], &lo[3 * size_t(out.body[k])], &hi[3 * size_t(out.body[k])], k);
+    out.boxes.finish(a);
+  }
+  return out;
 }
 
-// Runs find(i, partners) for every primitive i of [0, n) in parallel, sorts each primitive's
-// partners and writes the pairs (i', partner) in order of i, where i' = first_of(i).
-template <typename FirstOf, typename Find>
-void collect_sorted_pairs(int64_t n, FirstOf&& first_of, Find&& find, std::vector<IndexPair>& out) {
-  std::vector<std::vector<IndexPair>> chunks(static_cast<size_t>((n + kQueryGrain - 1) / kQueryGrain));
+// One chunk's output pairs. put() writes every pair and only advances past the kept ones, so the
+// filters cost no branch; room(n) must come first for the n puts that follow.
+class PairBuffer {
+ public:
+  void room(size_t n) {
+    if (size_ + n > pairs_.size()) pairs_.resize(std::max(2 * pairs_.size(), size_ + n + 1024));
+  }
+  void put(int32_t first, int32_t second, bool keep) {
+    pairs_[size_] = {first, second};
+    size_ += keep;
+  }
+  // Puts (first, ids[j]) for j < n: all of them, or those with keep(ids[j]).
+  void put_all(int32_t first, const int32_t* ids, int32_t n) {
+    room(static_cast<size_t>(n));
+    for (int32_t j = 0; j < n; ++j) pairs_[size_ + j] = {first, ids[j]};
+    size_ += static_cast<size_t>(n);
+  }
+  template <typename Keep>
+  void put_kept(int32_t first, const int32_t* ids, int32_t n, Keep&& keep) {
+    room(static_cast<size_t>(n));
+    for (int32_t j = 0; j < n; ++j) put(first, ids[j], keep(ids[j]));
+  }
+  // Room for the ids of a scan of n boxes (BlockedBoxes::scan); two independent areas.
+  int32_t* scratch(int32_t n, int area = 0) {
+    std::vector<int32_t>& s = scratch_[area];
+    if (static_cast<size_t>(n + BlockedBoxes::kBlock) > s.size()) s.resize(2 * static_cast<size_t>(n) + 64);
+    return s.data();
+  }
+  size_t size() const { return size_; }
+  const IndexPair* data() const { return pairs_.data(); }
+  // Sorts the pairs put since size() was `start` (one primitive's partners from a tree query).
+  void sort_from(size_t start) {
+    std::sort(pairs_.begin() + static_cast<int64_t>(start), pairs_.begin() + static_cast<int64_t>(size_));
+  }
+
+ private:
+  std::vector<IndexPair> pairs_;
+  size_t size_ = 0;
+  std::vector<int32_t> scratch_[2];
+};
+
+// Runs emit(i, buffer) for every primitive i of [0, n) in parallel chunks, each putting its pairs
+// in sorted order, and concatenates the chunks in order.
+template <typename Emit>
+void collect_pairs(int64_t n, Emit&& emit, std::vector<IndexPair>& out) {
+  std::vector<PairBuffer> chunks(static_cast<size_t>((n + kQueryGrain - 1) / kQueryGrain));
   for_each_chunk(n, kQueryGrain, [&](int64_t c, int64_t begin, int64_t end) {
-    Partners partners;
-    std::vector<IndexPair>& local = chunks[c];
-    for (int64_t i = begin; i < end; ++i) {
-      partners.clear();
-      find(static_cast<int32_t>(i), partners);
-      std::sort(partners.begin(), partners.end());
-      const int32_t first = first_of(static_cast<int32_t>(i));
-      for (int32_t p : partners) local.emplace_back(first, p);
-    }
+    for (int64_t i = begin; i < end; ++i) emit(static_cast<int32_t>(i), chunks[c]);
   });
   std::vector<size_t> offset(chunks.size() + 1, 0);
   for (size_t c = 0; c < chunks.size(); ++c) offset[c + 1] = offset[c] + chunks[c].size();
   out.resize(offset.back());
   parallel_for(static_cast<int64_t>(chunks.size()), [&](int64_t begin, int64_t end) {
     for (int64_t c = begin; c < end; ++c)
-      std::copy(chunks[c].begin(), chunks[c].end(), out.begin() + static_cast<int64_t>(offset[c]));
+      std::copy(chunks[c].data(), chunks[c].data() + chunks[c].size(), out.begin() + static_cast<int64_t>(offset[c]));
   }, 1);
+}
+
+// One frame's boxes of every body's triangles and edges, listed by id (list b: body b).
+struct BodyLists {
+  BlockedBoxes triangles, edges;
+
+  BodyLists(const std::vector<BodyPrimitives>& prims, const FrameBoxes& f) {
+    const auto nb = static_cast<int64_t>(prims.size());
+    std::vector<int32_t> triangle_count(nb), edge_count(nb);
+    for (int64_t b = 0; b < nb; ++b) {
+      triangle_count[b] = prims[b].t_end - prims[b].t_begin;
+      edge_count[b] = prims[b].e_end - prims[b].e_begin;
+    }
+    triangles.layout(triangle_count);
+    edges.layout(edge_count);
+    parallel_for(nb, [&](int64_t begin, int64_t end) {
+      for (int64_t b = begin; b < end; ++b) {
+        const BodyPrimitives& p = prims[b];
+        for (int32_t t = p.t_begin; t < p.t_end; ++t)
+          triangles.set(b, t - p.t_begin, &f.t_lo[3 * int64_t{t}], &f.t_hi[3 * int64_t{t}], t);
+        triangles.finish(b);
+        for (int32_t e = p.e_begin; e < p.e_end; ++e)
+          edges.set(b, e - p.e_begin, &f.e_lo[3 * int64_t{e}], &f.e_hi[3 * int64_t{e}], e);
+        edges.finish(b);
+      }
+    }, 1);
+  }
+};
+
+// Per primitive of K vertices: whether one of them is free. Primitives of different bodies share
+// no vertex, so for them this is the whole filter of candidates.hpp.
+template <int K>
+std::vector<uint8_t> free_flags(const Model& m, const int32_t* ids, int64_t n) {
+  std::vector<uint8_t> out(static_cast<size_t>(n));
+  parallel_for(n, [&](int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end; ++i) {
+      bool any = false;
+      for (int k = 0; k < K; ++k) any |= is_free(m, ids[K * i + k]);
+      out[i] = any;
+    }
+  }, 4096);
+  return out;
+}
+
+// For each entry k = (body A, neighbour B) of the neighbour CSR: the primitives of B whose world
+// boxes overlap A's body box, listed by id (list k). A primitive of A only ever meets these, so
+// it scans them and gets its partners in B already sorted. A subset larger than kMaxScan is not
+// listed: that entry queries B's tree instead (use_tree), so a big body next to a small one
+// costs a log per query, not a long scan.
+struct NeighborSubsets {
+  BlockedBoxes boxes;
+  std::vector<uint8_t> use_tree;
+};
+
+// body_lists: every body's primitives (world frame) of the kind wanted, boxes lower/upper;
+// only entries with wanted(k) get a subset.
+template <typename Wanted>
+NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedBoxes& body_lists,
+                                 const std::vector<double>& lower, const std::vector<double>& upper,
+                                 Wanted&& wanted) {
+  const auto entries = static_cast<int64_t>(neighbors.body.size());
+  NeighborSubsets s;
+  std::vector<std::vector<int32_t>> found(static_cast<size_t>(entries));  // B's ids, in order
+  std::vector<int32_t> size(static_cast<size_t>(entries), 0);
+  s.use_tree.assign(static_cast<size_t>(entries), 0);
+  parallel_for(entries, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      if (!wanted(k)) continue;
+      const int32_t b = neighbors.body[k];
+      const int64_t owner = neighbors.owner[k];
+      std::vector<int32_t>& ids = found[k];
+      ids.resize(static_cast<size_t>(body_lists.size(b) + BlockedBoxes::kBlock));
+      ids.resize(static_cast<size_t>(body_lists.scan(b, 0, &neighbors.body_lo[3 * owner],
+                                                     &neighbors.body_hi[3 * owner], ids.data())));
+      s.use_tree[k] = ids.size() > size_t{kMaxScan};
+      size[k] = s.use_tree[k] ? 0 : static_cast<int32_t>(ids.size());
+    }
+  }, 16);
+  s.boxes.layout(size);
+  parallel_for(entries, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      for (int32_t j = 0; j < size[k]; ++j) {
+        const int64_t p = found[k][j];
+        s.boxes.set(k, j, &lower[3 * p], &upper[3 * p], found[k][j]);
+      }
+      s.boxes.finish(k);
+    }
+  }, 16);
+  return s;
 }
 
 void find_vertex_plane(const Model& m, const double* x0, const double* x1, double inflation,
@@ -269,6 +416,30 @@ void find_vertex_plane(const Model& m, const double* x0, const double* x1, doubl
   }
 }
 
+// Trees over the bodies whose own triangles (edges) are too many to scan for their own pairs,
+// in the body frame.
+struct SameBodyTrees {
+  std::vector<uint8_t> triangle_tree, edge_tree;  // per body: use the tree
+  std::vector<BoxTree> triangles, edges;
+
+  SameBodyTrees(const std::vector<BodyPrimitives>& prims, const FrameBoxes& own) {
+    const auto nb = static_cast<int64_t>(prims.size());
+    triangle_tree.assign(nb, 0);
+    edge_tree.assign(nb, 0);
+    triangles.resize(nb);
+    edges.resize(nb);
+    parallel_for(nb, [&](int64_t begin, int64_t end) {
+      for (int64_t b = begin; b < end; ++b) {
+        const BodyPrimitives& p = prims[b];
+        triangle_tree[b] = p.any_free && p.t_end - p.t_begin > kMaxBodyScan;
+        edge_tree[b] = p.any_free && p.e_end - p.e_begin > kMaxBodyScan;
+        if (triangle_tree[b]) triangles[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
+        if (edge_tree[b]) edges[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
+      }
+    }, 1);
+  }
+};
+
 }  // namespace
 
 void find_contact_candidates(const Model& m, const double* x0, const double* x1, double inflation,
@@ -278,74 +449,124 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   const FrameBoxes& own = boxes.body_frame();
   const std::vector<BodyPrimitives> prims = body_primitives(m);
   const auto nb = static_cast<int64_t>(m.bodies.size());
+  const NeighborBodies neighbors = neighbor_bodies(m, prims, world);
 
-  std::vector<int32_t> neighbor_ptr, neighbors;
-  std::vector<double> neighbor_boxes;
-  neighbor_bodies(m, prims, world, neighbor_ptr, neighbors, neighbor_boxes);
-  // A primitive only queries a neighbour's tree when it overlaps that body's box.
-  auto near_neighbor = [&](int32_t k, const double* lo, const double* hi) {
-    const double* box = &neighbor_boxes[6 * int64_t{k}];
-    return (box[0] <= hi[0]) & (lo[0] <= box[3]) & (box[1] <= hi[1]) & (lo[1] <= box[4]) &
-           (box[2] <= hi[2]) & (lo[2] <= box[5]);
-  };
+  const auto nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
+  const auto ne = static_cast<int64_t>(m.surface_edges.size() / 2);
+  const std::vector<uint8_t> tri_free = free_flags<3>(m, m.surface_triangles.data(), nt);
+  const std::vector<uint8_t> edge_free = free_flags<2>(m, m.surface_edges.data(), ne);
+  // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
+  // lower edge, so only the higher-numbered neighbours' edges.
+  const BodyLists world_lists(prims, world);
+  const NeighborSubsets tri_near = neighbor_subsets(neighbors, world_lists.triangles, world.t_lo,
+                                                    world.t_hi, [](int64_t) { return true; });
+  const NeighborSubsets edge_near = neighbor_subsets(
+      neighbors, world_lists.edges, world.e_lo, world.e_hi,
+      [&](int64_t k) { return neighbors.body[k] > neighbors.owner[k]; });
 
-  // Trees over each body's triangles and edges: in the world frame for the neighbours' queries,
-  // in the body frame for its own (the same trees when nothing moves).
-  std::vector<BoxTree> tri_world(nb), edge_world(nb), tri_own, edge_own;
-  if (boxes.moving) {
-    tri_own.resize(nb);
-    edge_own.resize(nb);
+  // Trees over the world boxes of the neighbours too many to scan.
+  std::vector<uint8_t> tri_tree_needed(nb, 0), edge_tree_needed(nb, 0);
+  for (size_t k = 0; k < neighbors.body.size(); ++k) {
+    tri_tree_needed[neighbors.body[k]] |= tri_near.use_tree[k];
+    edge_tree_needed[neighbors.body[k]] |= edge_near.use_tree[k];
   }
+  std::vector<BoxTree> tri_world(nb), edge_world(nb);
   parallel_for(nb, [&](int64_t begin, int64_t end) {
     for (int64_t b = begin; b < end; ++b) {
-      const BodyPrimitives& p = prims[b];
-      const bool for_neighbors = neighbor_ptr[b + 1] > neighbor_ptr[b];
-      const bool for_self = p.any_free;
-      if (for_neighbors || (for_self && !boxes.moving)) {
-        tri_world[b].build(world.t_lo.data(), world.t_hi.data(), p.t_begin, p.t_end);
-        edge_world[b].build(world.e_lo.data(), world.e_hi.data(), p.e_begin, p.e_end);
-      }
-      if (for_self && boxes.moving) {
-        tri_own[b].build(own.t_lo.data(), own.t_hi.data(), p.t_begin, p.t_end);
-        edge_own[b].build(own.e_lo.data(), own.e_hi.data(), p.e_begin, p.e_end);
-      }
+      if (tri_tree_needed[b])
+        tri_world[b].build(world.t_lo.data(), world.t_hi.data(), prims[b].t_begin, prims[b].t_end);
+      if (edge_tree_needed[b])
+        edge_world[b].build(world.e_lo.data(), world.e_hi.data(), prims[b].e_begin, prims[b].e_end);
     }
   }, 1);
-  const std::vector<BoxTree>& tri_self = boxes.moving ? tri_own : tri_world;
-  const std::vector<BoxTree>& edge_self = boxes.moving ? edge_own : edge_world;
+  // Same-body pairs scan the body's own lists (in its frame), or its tree when too long.
+  const std::unique_ptr<BodyLists> moving_lists =
+      boxes.moving ? std::make_unique<BodyLists>(prims, own) : nullptr;
+  const BodyLists& own_lists = moving_lists ? *moving_lists : world_lists;
+  const SameBodyTrees same_body(prims, own);
 
-  // Vertex-triangle: each surface vertex against its body's triangles and its neighbours'.
-  collect_sorted_pairs(
+  // A tree query's partners, sorted (trees report in no particular order).
+  auto put_tree_hits = [](const BoxTree& tree, const double* lo, const double* hi, int32_t first,
+                          auto&& keep, PairBuffer& buffer) {
+    const size_t start = buffer.size();
+    tree.query(lo, hi, [&](int32_t p) {
+      buffer.room(1);
+      buffer.put(first, p, keep(p));
+    });
+    buffer.sort_from(start);
+  };
+  // A primitive's pairs with neighbour entry k (whose body's box it overlaps): a scan of the
+  // subset or, for big subsets, a query of the neighbour's tree.
+  auto neighbor_pairs = [&](const NeighborSubsets& subsets, const std::vector<BoxTree>& trees,
+                            const std::vector<uint8_t>& partner_free, int32_t k, const double* lo,
+                            const double* hi, int32_t first, bool first_free, PairBuffer& buffer) {
+    auto keep = [&](int32_t p) { return first_free | (partner_free[p] != 0); };
+    if (subsets.use_tree[k]) return put_tree_hits(trees[neighbors.body[k]], lo, hi, first, keep, buffer);
+    int32_t* ids = buffer.scratch(subsets.boxes.size(k));
+    const int32_t n = subsets.boxes.scan(k, 0, lo, hi, ids);
+    if (first_free)
+      buffer.put_all(first, ids, n);
+    else
+      buffer.put_kept(first, ids, n, keep);
+  };
+
+  // Vertex-triangle: each surface vertex against the neighbours below its body, its own body and
+  // the neighbours above, so that its partners come out in increasing triangle order.
+  collect_pairs(
       static_cast<int64_t>(m.surface_vertices.size()),
-      [&](int32_t i) { return m.surface_vertices[i]; },
-      [&](int32_t i, Partners& partners) {
+      [&](int32_t i, PairBuffer& buffer) {
         const int32_t v = m.surface_vertices[i];
         const int32_t body = m.vertex_body[v];
-        auto keep = [&](int32_t t) { partners.add(t, keep_vertex_triangle(m, v, t)); };
-        if (prims[body].any_free)
-          tri_self[body].query(&own.v_lo[3 * int64_t{i}], &own.v_hi[3 * int64_t{i}], keep);
+        const bool v_free = is_free(m, v);
         const double* lo = &world.v_lo[3 * int64_t{i}];
         const double* hi = &world.v_hi[3 * int64_t{i}];
-        for (int32_t k = neighbor_ptr[body]; k < neighbor_ptr[body + 1]; ++k)
-          if (near_neighbor(k, lo, hi)) tri_world[neighbors[k]].query(lo, hi, keep);
+        int32_t* near = buffer.scratch(neighbors.ptr[body + 1] - neighbors.ptr[body], 1);
+        const int32_t near_count = neighbors.near(body, 0, lo, hi, near);
+        int32_t j = 0;
+        for (; j < near_count && near[j] < neighbors.above[body]; ++j)
+          neighbor_pairs(tri_near, tri_world, tri_free, near[j], lo, hi, v, v_free, buffer);
+        if (prims[body].any_free) {
+          const double* own_lo = &own.v_lo[3 * int64_t{i}];
+          const double* own_hi = &own.v_hi[3 * int64_t{i}];
+          auto keep = [&](int32_t t) { return keep_vertex_triangle(m, v, t); };
+          if (same_body.triangle_tree[body]) {
+            put_tree_hits(same_body.triangles[body], own_lo, own_hi, v, keep, buffer);
+          } else {
+            int32_t* ids = buffer.scratch(own_lists.triangles.size(body));
+            buffer.put_kept(v, ids, own_lists.triangles.scan(body, 0, own_lo, own_hi, ids), keep);
+          }
+        }
+        for (; j < near_count; ++j)
+          neighbor_pairs(tri_near, tri_world, tri_free, near[j], lo, hi, v, v_free, buffer);
       },
       out.vertex_triangle);
 
-  // Edge-edge: each edge against the higher-numbered edges of its body and its neighbours'.
-  collect_sorted_pairs(
-      static_cast<int64_t>(m.surface_edges.size() / 2), [](int32_t a) { return a; },
-      [&](int32_t a, Partners& partners) {
+  // Edge-edge: each edge against the higher-numbered edges of its body, then of the neighbours
+  // above its body.
+  collect_pairs(
+      ne,
+      [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m.vertex_body[m.surface_edges[2 * int64_t{a}]];
-        auto keep = [&](int32_t b) { partners.add(b, (b > a) & keep_edge_edge(m, a, b)); };
-        if (prims[body].any_free)
-          edge_self[body].query(&own.e_lo[3 * int64_t{a}], &own.e_hi[3 * int64_t{a}], keep);
+        if (prims[body].any_free) {
+          const double* own_lo = &own.e_lo[3 * int64_t{a}];
+          const double* own_hi = &own.e_hi[3 * int64_t{a}];
+          if (same_body.edge_tree[body]) {
+            auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m, a, b); };
+            put_tree_hits(same_body.edges[body], own_lo, own_hi, a, keep, buffer);
+          } else {
+            auto keep = [&](int32_t b) { return keep_edge_edge(m, a, b); };
+            int32_t* ids = buffer.scratch(own_lists.edges.size(body));
+            const int32_t above_a = a + 1 - prims[body].e_begin;
+            buffer.put_kept(a, ids, own_lists.edges.scan(body, above_a, own_lo, own_hi, ids), keep);
+          }
+        }
         const double* lo = &world.e_lo[3 * int64_t{a}];
         const double* hi = &world.e_hi[3 * int64_t{a}];
-        for (int32_t k = neighbor_ptr[body]; k < neighbor_ptr[body + 1]; ++k) {
-          const int32_t other = neighbors[k];
-          if (prims[other].e_end - 1 <= a) continue;  // all its edges are numbered below a
-          if (near_neighbor(k, lo, hi)) edge_world[other].query(lo, hi, keep);
-        }
+        int32_t* near = buffer.scratch(neighbors.ptr[body + 1] - neighbors.ptr[body], 1);
+        const int32_t above = neighbors.above[body] - neighbors.ptr[body];
+        const int32_t near_count = neighbors.near(body, above, lo, hi, near);
+        for (int32_t j = 0; j < near_count; ++j)
+          neighbor_pairs(edge_near, edge_world, edge_free, near[j], lo, hi, a, edge_free[a] != 0, buffer);
       },
       out.edge_edge);
 

@@ -8,8 +8,9 @@
 //   * pairs with no free vertex (all four Dirichlet-held, e.g. two triangles of one obstacle):
 //     nothing in the solve can move them, so they carry no force and no CCD limit.
 //
-// Broad phase (candidates.cpp): Embree finds the pairs of bodies whose boxes overlap, then each
-// primitive queries a BoxTree (bvh/box_tree.hpp) of its own body and of the bodies next to it.
+// Broad phase (candidates.cpp): Embree finds the pairs of bodies whose boxes overlap; then each
+// primitive scans, in id order, the primitives of its own body and those of each neighbouring
+// body that lie within its body's box (a tree query for lists too long to scan).
 // A primitive's box covers it at x0 and at x1, so by convexity it covers the primitive at every
 // point of the motion; inflated by r on every side, two boxes overlap whenever the primitives
 // come within 2 r of each other at some time in [0, 1]. Pairs within one body are boxed in the

@@ -1,7 +1,9 @@
 // Contact candidates (engine/contact/candidates) against the O(n^2) reference on the same boxes,
 // static and swept, plus the property the co-moving frame of same-body pairs must keep: every
-// pair that comes within 2 r at some time of the motion is a candidate of the sweep.
+// pair that comes within 2 r at some time of the motion is a candidate of the sweep. Also the
+// scans of bvh/blocked_boxes.hpp the broad phase is built on.
 #include "engine/contact/candidates.hpp"
+#include "bvh/blocked_boxes.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -35,6 +37,20 @@ Scene many_bodies() {
                    { "mesh": ")" + bowl + R"(", "scale": 1.8 } ]
   })", "candidates_many_bodies");
   return scene;
+}
+
+// Two plates of 32 x 32 cells, one resting 4 mm above the other: more than 2048 triangles and
+// edges per body and per face, so same-body pairs and pairs across the gap take the tree paths
+// that bodies too big to scan go through.
+Scene two_plates() {
+  return test::scene_from_json(R"({
+    "gravity": [0, -9.81, 0], "time": { "dt": 0.01 }, "contact": { "dhat": 0.01 },
+    "materials": { "a": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [
+      { "box": { "size": [1, 0.05, 1], "cells": [32, 1, 32] }, "material": "a" },
+      { "box": { "size": [1, 0.05, 1], "cells": [32, 1, 32] }, "material": "a",
+        "translate": [0.01, 0.054, 0.0] } ]
+  })", "candidates_two_plates");
 }
 
 // x0 -> x1: every free body moves by its own large translation (the co-moving frame's case) and
@@ -101,6 +117,28 @@ TEST_CASE("contact candidates equal the brute force, static and swept, on 1 and 
   }
 }
 
+TEST_CASE("contact candidates of bodies too big to scan equal the brute force") {
+  const Scene scene = two_plates();
+  const Model& model = scene.model;
+  REQUIRE(model.bodies.size() == 2);
+  CHECK(model.bodies[0].triangle_count > 4000);
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-4, 5);
+  const std::vector<double> x1 = moved(model, x0, 6);
+  for (const double* end : {static_cast<const double*>(nullptr), x1.data()}) {
+    CAPTURE(end != nullptr);
+    ContactCandidates reference;
+    find_contact_candidates_brute_force(model, x0.data(), end, 0.005, reference);
+    CHECK(!reference.vertex_triangle.empty());
+    CHECK(!reference.edge_edge.empty());
+    for (int threads : {1, 2}) {
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      ContactCandidates fast;
+      find_contact_candidates(model, x0.data(), end, 0.005, fast);
+      check_equal(fast, reference);
+    }
+  }
+}
+
 TEST_CASE("a swept candidate list holds every pair close at some time of the motion") {
   // Bodies translating fast are where the co-moving frame of same-body pairs matters: sample the
   // motion and check that each pair close at a sample is in the swept list.
@@ -139,4 +177,45 @@ TEST_CASE("a swept candidate list holds every pair close at some time of the mot
   find_contact_candidates(model, x0.data(), nullptr, r, at_start);
   MESSAGE("same-body pairs: swept ", same_body_pairs(swept), ", at the start ", same_body_pairs(at_start));
   CHECK(same_body_pairs(swept) < 3 * same_body_pairs(at_start));
+}
+
+TEST_CASE("a blocked box list scan reports the overlapping boxes from an index on, in order") {
+  // The scans behind the candidates: lists of every length around the block size, random boxes
+  // and queries, every start index; against a loop over the boxes.
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> corner(0.0, 1.0), size(0.0, 0.1);
+  const std::vector<int32_t> sizes = {0, 1, 7, 8, 9, 63, 64, 65, 300};
+  std::vector<std::vector<double>> lower(sizes.size()), upper(sizes.size());
+  BlockedBoxes lists;
+  lists.layout(sizes);
+  for (size_t l = 0; l < sizes.size(); ++l) {
+    for (int32_t i = 0; i < sizes[l]; ++i) {
+      for (int d = 0; d < 3; ++d) {
+        lower[l].push_back(corner(rng));
+        upper[l].push_back(lower[l].back() + size(rng));
+      }
+      lists.set(static_cast<int32_t>(l), i, &lower[l][3 * i], &upper[l][3 * i], 1000 * static_cast<int32_t>(l) + i);
+    }
+    lists.finish(static_cast<int32_t>(l));
+  }
+  std::vector<int32_t> found(300 + BlockedBoxes::kBlock);
+  int64_t hits = 0;
+  for (int q = 0; q < 200; ++q) {
+    double lo[3], hi[3];
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = corner(rng);
+      hi[d] = lo[d] + 3.0 * size(rng);
+    }
+    for (size_t l = 0; l < sizes.size(); ++l)
+      for (int32_t from = 0; from <= sizes[l]; ++from) {
+        std::vector<int32_t> expected;
+        for (int32_t i = from; i < sizes[l]; ++i)
+          if (boxes_overlap(lower[l].data(), upper[l].data(), i, lo, hi, 0))
+            expected.push_back(1000 * static_cast<int32_t>(l) + i);
+        const int32_t n = lists.scan(static_cast<int32_t>(l), from, lo, hi, found.data());
+        REQUIRE(std::vector<int32_t>(found.begin(), found.begin() + n) == expected);
+        hits += n;
+      }
+  }
+  CHECK(hits > 1000);
 }
