@@ -82,7 +82,9 @@ namespace nexdyn {
 
 // The closest feature pair of a contact stencil (mirrors the barrier's stencil kinds; a mollified
 // edge-edge stencil uses edge_edge with the closest features of its case, see friction_basis).
-enum class FrictionStencil : uint8_t { vertex_plane, point_point, point_edge, point_triangle, edge_edge };
+enum class FrictionStencil : uint8_t {
+  vertex_plane, point_point, point_edge, point_triangle, edge_edge
+};
 
 // Number of stencil vertices n: the meaningful part of the padded 12-DOF values is the first 3 n.
 inline int friction_stencil_size(FrictionStencil kind) {
@@ -163,8 +165,8 @@ inline Eigen::Vector2d edge_edge_closest_parameters(const Eigen::Vector3d& ea0,
   double g1 = 0.0;
   if (a > 0.0) {
     // eb's ends in ea's parameter, then the overlap with [0, 1].
-    const double s0 = -d / a;           // (eb0 - ea0) . ea / a
-    const double s1 = (b - d) / a;      // (eb1 - ea0) . ea / a
+    const double s0 = -d / a;       // (eb0 - ea0) . ea / a
+    const double s1 = (b - d) / a;  // (eb1 - ea0) . ea / a
     const double lo = std::max(0.0, std::min(s0, s1));
     const double hi = std::min(1.0, std::max(s0, s1));
     g1 = lo <= hi ? 0.5 * (lo + hi) : std::clamp(0.5 * (s0 + s1), 0.0, 1.0);

@@ -2,11 +2,11 @@
 // against finite differences of the barrier along the unsquared distance; per stencil kind
 // (vertex-plane, point-point, point-edge, point-triangle, edge-edge) on constructed contacts whose
 // closest points are known: the closest-point parameters, an orthonormal tangent basis orthogonal
-// to the normal, zero slip under rigid translation and under motion along the normal, and the
-// friction potential's gradient and Hessian in x against central differences in the static band
-// (|u| < eps_u) and while sliding (|u| > eps_u); Coulomb's law while sliding (force of magnitude
-// mu lambda against the slip); the closed-form 2 x 2 Hessian against an eigensolver (PSD);
-// parallel edges.
+// to the normal (and D unchanged by rotating it in the plane), zero slip under rigid translation
+// and under motion along the normal, and the friction potential's gradient and Hessian in x
+// against central differences in the static band (|u| < eps_u) and while sliding (|u| > eps_u);
+// Coulomb's law while sliding (force of magnitude mu lambda against the slip); the closed-form
+// 2 x 2 Hessian against an eigensolver (PSD); parallel and degenerate edges.
 #include "kernels/barrier/barrier.hpp"
 #include "kernels/friction/friction.hpp"
 
@@ -57,7 +57,7 @@ double uniform(std::mt19937_64& rng, double lo, double hi) {
 // w (Gamma = w^T (x) I3) and the expected contact normal, independent of the kernels.
 struct Contact {
   FrictionStencil kind;
-  Mat34 X = Mat34::Zero();           // lagged positions, DOF order, columns past n zero
+  Mat34 X = Mat34::Zero();            // lagged positions, DOF order, columns past n zero
   Vec3 plane_normal = Vec3::UnitZ();  // vertex_plane only
   Eigen::Vector4d w = Eigen::Vector4d::Zero();
   Vec3 normal;
@@ -120,7 +120,8 @@ Contact make_contact(FrictionStencil kind, std::mt19937_64& rng) {
       do {
         ea = random_point(rng);
         eb = random_point(rng);
-      } while (ea.norm() < 0.3 || eb.norm() < 0.3 || ea.cross(eb).norm() < 0.1 * ea.norm() * eb.norm());
+      } while (ea.norm() < 0.3 || eb.norm() < 0.3 ||
+               ea.cross(eb).norm() < 0.1 * ea.norm() * eb.norm());
       const double g1 = uniform(rng, 0.05, 0.95);
       const double g2 = uniform(rng, 0.05, 0.95);
       c.normal = ea.cross(eb).normalized();
@@ -176,15 +177,17 @@ TEST_CASE("friction: f0 and f1 are the smoothed Coulomb magnitude and its antide
     const double df0 = (friction_f0(y + h, eps_u) - friction_f0(y - h, eps_u)) / (2 * h);
     CHECK(friction_f1(y, eps_u) == doctest::Approx(df0).epsilon(1e-7));
     const double df1 = (friction_f1(y + h, eps_u) - friction_f1(y - h, eps_u)) / (2 * h);
-    CHECK(friction_f1_derivative(y, eps_u) == doctest::Approx(df1).epsilon(1e-6).scale(1e-6 / eps_u));
-    CHECK(friction_f1_over_y(y, eps_u) == doctest::Approx(friction_f1(y, eps_u) / y).epsilon(1e-13));
+    CHECK(friction_f1_derivative(y, eps_u) ==
+          doctest::Approx(df1).epsilon(1e-6).scale(1e-6 / eps_u));
+    CHECK(friction_f1_over_y(y, eps_u) ==
+          doctest::Approx(friction_f1(y, eps_u) / y).epsilon(1e-13));
     CHECK(friction_f1(y, eps_u) >= 0.0);
     CHECK(friction_f1(y, eps_u) <= 1.0);
     CHECK(friction_f1_derivative(y, eps_u) >= 0.0);
   }
 }
 
-TEST_CASE("friction: normal force is minus the derivative of kappa b(s^2) along the distance") {
+TEST_CASE("friction: normal force is minus the derivative of kappa b along the distance") {
   std::mt19937_64 rng(3);
   const double kappa = 37.0;
   for (double dhat2 : {1e-6, 1e-2, 1.0}) {
@@ -224,6 +227,17 @@ TEST_CASE("friction: closest-point weights and tangent bases per stencil kind") 
         CHECK((G.block<3, 3>(0, 3 * i) - f.w(i) * Eigen::Matrix3d::Identity()).norm() == 0.0);
       }
       CHECK((tangent_jacobian(f) - G.transpose() * f.P).norm() < 1e-15);
+      // Only the tangent plane matters: rotating P within it leaves D and its derivatives alone.
+      const double angle = uniform(rng, 0, 2 * std::numbers::pi);
+      FrictionBasis rotated = f;
+      rotated.P = f.P * Eigen::Rotation2Dd(angle).toRotationMatrix();
+      const Vector12d dx = displacement_with_slip(f, uniform(rng, 0.0, 3e-3), rng);
+      CHECK(friction_energy(rotated, dx, 0.5, 2.0, 1e-3) ==
+            doctest::Approx(friction_energy(f, dx, 0.5, 2.0, 1e-3)).epsilon(1e-12));
+      CHECK(relative_error(friction_gradient(rotated, dx, 0.5, 2.0, 1e-3),
+                           friction_gradient(f, dx, 0.5, 2.0, 1e-3), 1e-12) < 1e-12);
+      CHECK(relative_error(friction_hessian(rotated, dx, 0.5, 2.0, 1e-3),
+                           friction_hessian(f, dx, 0.5, 2.0, 1e-3), 1e-12) < 1e-12);
     }
   }
 }
@@ -282,8 +296,12 @@ void check_friction_derivatives(double y_lo, double y_hi, uint64_t seed) {
       const Vector12d x = x_prev + displacement_with_slip(f, y, rng);
       CHECK(tangential_displacement(f, x - x_prev).norm() == doctest::Approx(y).epsilon(1e-12));
 
-      auto energy = [&](const Vector12d& z) { return friction_energy(f, z - x_prev, mu, lambda, eps_u); };
-      auto gradient = [&](const Vector12d& z) { return friction_gradient(f, z - x_prev, mu, lambda, eps_u); };
+      auto energy = [&](const Vector12d& z) {
+        return friction_energy(f, z - x_prev, mu, lambda, eps_u);
+      };
+      auto gradient = [&](const Vector12d& z) {
+        return friction_gradient(f, z - x_prev, mu, lambda, eps_u);
+      };
       const double h = 1e-8;
       Vector12d g_fd;
       Matrix12d H_fd;
@@ -350,7 +368,7 @@ TEST_CASE("friction: sliding force has magnitude mu lambda and opposes the slip"
   }
 }
 
-TEST_CASE("friction: the 2x2 Hessian is PSD with eigenvalues f1' along the slip and f1 over y across") {
+TEST_CASE("friction: closed-form 2x2 Hessian is PSD with eigenvalues f1 prime and f1 over y") {
   std::mt19937_64 rng(19);
   const double eps_u = 1e-3;
   // y = 0: (2 / eps_u) I.
