@@ -8,6 +8,8 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -87,6 +89,29 @@ inline Eigen::MatrixXd dense_from(const CscPattern& p, const std::vector<double>
       H(c, p.row_idx[k]) = values[k];
     }
   return H;
+}
+
+// Vertices n of a contact stencil from its 3n x 3n slab size.
+inline int64_t stencil_size(int64_t slab_size) { return std::lround(std::sqrt(double(slab_size))) / 3; }
+
+// H += every slab of the last compute_derivatives() of a contact potential (BarrierPotential or
+// FrictionPotential: stencils (num x 4), slab_begin, column-major 3n x 3n local_hessians) at its
+// vertices' rows and columns; absent and held vertices (-1) are skipped.
+template <class Potential>
+void add_contact_slabs(const Potential& contact, Eigen::MatrixXd& H) {
+  const std::vector<int32_t>& st = contact.stencils();
+  const std::vector<int64_t>& begin = contact.slab_begin();
+  const std::vector<double>& slabs = contact.local_hessians();
+  for (int64_t k = 0; k + 1 < static_cast<int64_t>(begin.size()); ++k) {
+    const int64_t size = stencil_size(begin[k + 1] - begin[k]);
+    for (int a = 0; a < size; ++a)
+      for (int b = 0; b < size; ++b) {
+        if (st[4 * k + a] < 0 || st[4 * k + b] < 0) continue;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c)
+            H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
+      }
+  }
 }
 
 }  // namespace nexdyn::test

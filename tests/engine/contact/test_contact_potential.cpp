@@ -46,27 +46,6 @@ Scene two_boxes() {
 
 constexpr double kDhat = 0.05;
 
-// Vertices n of a stencil from its 3n x 3n slab size.
-int64_t test_stencil_size(int64_t slab_size) { return std::lround(std::sqrt(double(slab_size))) / 3; }
-
-// H += every contact slab of the last compute_derivatives(), at its vertices' rows and columns
-// (absent and held vertices, -1, skipped).
-void add_contact_slabs(const BarrierPotential& contact, Eigen::MatrixXd& H) {
-  const std::vector<int32_t>& st = contact.stencils();
-  const std::vector<int64_t>& begin = contact.slab_begin();
-  const std::vector<double>& slabs = contact.local_hessians();
-  for (int64_t k = 0; k < contact.num_stencils(); ++k) {
-    const int64_t size = test_stencil_size(begin[k + 1] - begin[k]);
-    for (int a = 0; a < size; ++a)
-      for (int b = 0; b < size; ++b) {
-        if (st[4 * k + a] < 0 || st[4 * k + b] < 0) continue;
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c)
-            H(3 * st[4 * k + a] + r, 3 * st[4 * k + b] + c) += slabs[begin[k] + (3 * b + c) * 3 * size + 3 * a + r];
-      }
-  }
-}
-
 }  // namespace
 
 TEST_CASE("incremental potential gradient with contact matches finite differences") {
@@ -127,7 +106,7 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     Eigen::MatrixXd H = scale * test::dense_from(elastic.pattern(), evalues);
     for (int32_t v = 0; v < model.num_vertices; ++v)
       for (int d = 0; d < 3; ++d) H(3 * v + d, 3 * v + d) += model.mass[v];
-    add_contact_slabs(contact, H);
+    test::add_contact_slabs(contact, H);
     *reference = H;
     CHECK(potential.pattern().nnz() > elastic.pattern().nnz());  // contact added blocks
     const Eigen::MatrixXd assembled = test::dense_from(potential.pattern(), values);
@@ -136,7 +115,7 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     const std::vector<int64_t>& begin = contact.slab_begin();
     const std::vector<double>& slabs = contact.local_hessians();
     for (int64_t k = 0; k < contact.num_stencils(); ++k) {
-      const int64_t n = 3 * test_stencil_size(begin[k + 1] - begin[k]);
+      const int64_t n = 3 * test::stencil_size(begin[k + 1] - begin[k]);
       const Eigen::Map<const Eigen::MatrixXd> S(&slabs[begin[k]], n, n);
       CHECK((S - S.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * (1.0 + S.cwiseAbs().maxCoeff()));
       CHECK(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S).eigenvalues().minCoeff() >=
@@ -277,7 +256,7 @@ TEST_CASE("merging equal closest features changes no energy, gradient or Hessian
     CHECK((grad - grad_ref).cwiseAbs().maxCoeff() <= 1e-12 * grad_ref.cwiseAbs().maxCoeff());
 
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
-    add_contact_slabs(contact, H);
+    test::add_contact_slabs(contact, H);
     CHECK(H_ref.cwiseAbs().maxCoeff() > 0.0);
     CHECK((H - H_ref).cwiseAbs().maxCoeff() <= 1e-12 * H_ref.cwiseAbs().maxCoeff());
   }
