@@ -57,7 +57,9 @@ double IncrementalPotential::energy(const double* x) const {
     if (!std::isfinite(barrier)) return std::numeric_limits<double>::infinity();
   }
   const double joints = joints_ ? joints_->energy(x) : 0.0;
-  return inertia_gravity_energy(x) + scale_ * (elastic + joints) + contact_scale_ * kappa_ * barrier;
+  const double friction = friction_ ? friction_->energy(x) : 0.0;
+  return inertia_gravity_energy(x) + scale_ * (elastic + joints) +
+         contact_scale_ * (kappa_ * barrier + friction);
 }
 
 void IncrementalPotential::begin_solve(const double* x) {
@@ -104,7 +106,20 @@ void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   if (!contact_) return;
   ProfileScope scope(profile_, StepPhase::barrier);
   contact_->assemble(x, contact_scale_ * kappa_, true);
-  contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
+  if (!friction_ || friction_->num_stencils() == 0) {
+    contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
+    return;
+  }
+  friction_->compute_derivatives(x, contact_scale_, true);
+  // One stencil list for the pattern: the barrier's, then friction's (a copy per iteration; the
+  // friction stencils are the barrier's of the lagged state, so the pattern rarely grows).
+  contact_stencils_ = contact_->stencils();
+  contact_stencils_.insert(contact_stencils_.end(), friction_->stencils().begin(), friction_->stencils().end());
+  contact_slab_begin_ = contact_->slab_begin();
+  const int64_t offset = contact_slab_begin_.back();
+  for (size_t k = 1; k < friction_->slab_begin().size(); ++k)
+    contact_slab_begin_.push_back(offset + friction_->slab_begin()[k]);
+  contact_pattern_->update(contact_stencils_, contact_slab_begin_, first_iteration);
 }
 
 void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values) {
@@ -125,7 +140,15 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   // The contact slabs are already weighted by s_c kappa (prepare()).
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
-    contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values);
+    const double* slabs = contact_->local_hessians().data();
+    if (friction_ && friction_->num_stencils() > 0) {
+      contact_slabs_.assign(contact_->local_hessians().begin(),
+                            contact_->local_hessians().begin() + contact_->slab_begin().back());
+      contact_slabs_.insert(contact_slabs_.end(), friction_->local_hessians().begin(),
+                            friction_->local_hessians().begin() + friction_->slab_begin().back());
+      slabs = contact_slabs_.data();
+    }
+    contact_pattern_->assemble(elastic_values, slabs, values);
   }
   parallel_for(model_.num_vertices, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v)
@@ -138,6 +161,7 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
     contact_->add_gradient(grad);
+    if (friction_) friction_->add_gradient(grad);
   }
 }
 
@@ -155,6 +179,10 @@ void IncrementalPotential::remove_contact_acceleration(const double* x, std::vec
   if (contact_) {
     contact_->assemble(x, contact_scale_ * kappa_, false);
     contact_->add_gradient(grad.data());
+  }
+  if (friction_) {  // friction acts with the contact force that carries it
+    friction_->compute_derivatives(x, contact_scale_, false);
+    friction_->add_gradient(grad.data());
   }
   if (joints_) {
     std::vector<double>& joint_grad = joint_gradient_;

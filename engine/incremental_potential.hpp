@@ -1,9 +1,11 @@
 // The incremental potential of one time step (DESIGN.md sections 4 and 5):
 //   E(x) = w/2 (x - x_tilde)^T M (x - x_tilde)
-//          + s (Psi_elastic(x) + Phi_joints(x) - sum_i m_i g . (x_i - x_tilde_i)) + s_c kappa B(x)
+//          + s (Psi_elastic(x) + Phi_joints(x) - sum_i m_i g . (x_i - x_tilde_i))
+//          + s_c (kappa B(x) + D(x))
 // with w = 1 for dynamic schemes and 0 for "static", s the integrator's potential scale,
-// Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp) and kappa B the IPC
-// barrier of contact (when the scene has contact), weighted by s_c = s / gamma.
+// Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp), kappa B the IPC
+// barrier of contact (when the scene has contact) and D its lagged friction
+// (engine/contact/friction_potential.hpp), both weighted by s_c = s / gamma.
 //
 // Why s / gamma: contact forces are impulsive. The trapezoidal rule (Newmark) would apply the
 // barrier force found at the end of a step half in this step and half again in the next, through
@@ -12,7 +14,8 @@
 // Instead the contact force f_c = -kappa grad B acts as one impulse h f_c at the end of the step:
 // with weight s / gamma the usual update v += h gamma a_{n+1} gives exactly that impulse, and
 // the simulation removes f_c from the acceleration carried to the next step
-// (contact_acceleration). For implicit Euler (gamma = 1) nothing changes. Joint forces are
+// (contact_acceleration). Friction rides on the contact force and is treated alike. For
+// implicit Euler (gamma = 1) nothing changes. Joint forces are
 // treated the same way (weight 1 / gamma inside s Phi_joints): carried over by the trapezoidal
 // rule, the force of a stiff constraint alternates from step to step and the alternation grows
 // (measured on the double pendulum: the total energy went from 0.01% to 1e3% off in 70 steps).
@@ -31,6 +34,7 @@
 #pragma once
 
 #include "engine/contact/barrier_potential.hpp"
+#include "engine/contact/friction_potential.hpp"
 #include "engine/elastic_assembly.hpp"
 #include "engine/joints.hpp"
 #include "engine/model.hpp"
@@ -48,6 +52,8 @@ class IncrementalPotential {
   // elastic assembly's coupling slabs (engine/joints.hpp).
   IncrementalPotential(const Model& model, ElasticAssembly& elastic, BarrierPotential* contact = nullptr,
                        const JointSet* joints = nullptr);
+  // Lagged friction over the contacts (null: frictionless), weighted like the barrier by s_c.
+  void set_friction(FrictionPotential* friction) { friction_ = friction; }
 
   // Fixes x_tilde, the potential scale s and whether inertia is present for the coming solve.
   void begin_step(const std::vector<double>& x_tilde, double scale, double contact_scale, bool inertia) {
@@ -90,6 +96,11 @@ class IncrementalPotential {
   ElasticAssembly& elastic_;
   BarrierPotential* contact_ = nullptr;
   const JointSet* joints_ = nullptr;
+  FrictionPotential* friction_ = nullptr;
+  // Barrier and friction stencils as one list for the pattern (friction after the barrier).
+  std::vector<int32_t> contact_stencils_;
+  std::vector<int64_t> contact_slab_begin_;
+  std::vector<double> contact_slabs_;
   StepProfile* profile_ = nullptr;
   std::unique_ptr<ContactPattern> contact_pattern_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact

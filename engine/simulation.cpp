@@ -29,17 +29,31 @@ constexpr int kMaxJointRounds = 30;
 constexpr double kJointStiffening = 4.0;
 constexpr double kMaxJointStiffening = 1e3;  // over the whole run: k stays conditioned
 
+// Friction: the most lagging iterations of a step under "friction_iterations": "converged", and
+// the relative change of the summed normal force at which the lagging stops.
+constexpr int kMaxFrictionLags = 20;
+constexpr double kFrictionLagTolerance = 1e-3;
+
 std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
   if (!scene.contact.enabled) return nullptr;
   return std::make_unique<BarrierPotential>(scene.model, resolved_dhat(scene));
+}
+
+std::unique_ptr<FrictionPotential> make_friction(const Scene& scene) {
+  if (!scene.contact.enabled || !(scene.contact.friction > 0.0)) return nullptr;
+  const double diagonal = bodies_bbox_diagonal(scene.model);
+  const double epsv = scene.contact.epsv > 0.0 ? scene.contact.epsv : 1e-3 * (diagonal > 0.0 ? diagonal : 1.0);
+  return std::make_unique<FrictionPotential>(scene.model, scene.contact.friction, epsv);
 }
 }  // namespace
 
 Simulation::Simulation(const Scene& scene)
     : scene_(scene), model_(scene.model), state_(scene.initial), joints_(scene.model),
       elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
+      friction_(make_friction(scene)),
       potential_(scene.model, elastic_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
   potential_.set_profile(&profile_);
+  potential_.set_friction(friction_.get());
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
@@ -126,7 +140,19 @@ StepOutcome Simulation::step() {
                           !integrator.is_static);
     outcome = start_point(t_next);
     if (outcome.status != StepStatus::ok) return outcome;
-    const NewtonResult result = solve_step(iterations);
+    // Friction is lagged at x_n, then (friction_iterations) at each solution, re-solving.
+    if (friction_) lag_friction(state_.x);
+    NewtonResult result = solve_step(iterations);
+    const int lags = scene_.contact.friction_iterations < 0 ? kMaxFrictionLags : scene_.contact.friction_iterations;
+    for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
+      const double before = friction_->total_normal_force();
+      lag_friction(x_next_);
+      const double after = friction_->total_normal_force();
+      if (scene_.contact.friction_iterations < 0 &&
+          std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))
+        break;
+      result = solve_step(iterations);
+    }
     if (result.status != StepStatus::ok) {
       outcome = {result.status, result.message};
       return outcome;
@@ -186,6 +212,15 @@ NewtonResult Simulation::solve_step(int& iterations) {
     iterations += result.iterations;
   }
   return result;
+}
+
+void Simulation::lag_friction(const std::vector<double>& x) {
+  // Before the first solve with contact the barrier stiffness is still unset: set it from x.
+  if (potential_.barrier_stiffness() == 0.0) potential_.begin_solve(x.data());
+  ProfileScope scope(&profile_, StepPhase::barrier);
+  contact_->find_candidates(x.data(), nullptr);
+  contact_->build_active_set(x.data());
+  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), scene_.time.dt);
 }
 
 void Simulation::constrain_initial_acceleration() {

@@ -75,6 +75,8 @@ class Simulation {
   // Newton solves of the step, repeated with updated joint multipliers until every joint holds
   // to the tolerance; adds the Newton iterations to `iterations`.
   NewtonResult solve_step(int& iterations);
+  // Friction bases and normal forces at x (lagged; engine/contact/friction_potential.hpp).
+  void lag_friction(const std::vector<double>& x);
   // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
   void constrain_initial_acceleration();
 
@@ -86,6 +88,7 @@ class Simulation {
   JointSet joints_;  // before elastic_, which takes its coupling groups
   ElasticAssembly elastic_;
   std::unique_ptr<BarrierPotential> contact_;  // null without contact
+  std::unique_ptr<FrictionPotential> friction_;  // null without friction
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
   double joint_tolerance_ = 0.0;          // [m]

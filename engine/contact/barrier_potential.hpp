@@ -43,6 +43,12 @@ double bodies_bbox_diagonal(const Model& model);
 
 class BarrierPotential {
  public:
+  // Closest feature of a stencil; decides its size and derivative kernel.
+  enum class StencilKind : uint8_t {
+    vertex_plane, point_point, point_edge, point_triangle, edge_edge, edge_edge_mollified
+  };
+  static int stencil_size(StencilKind kind);  // vertices n: the slab is 3n x 3n
+
   // dhat: activation distance [m] (> 0).
   BarrierPotential(const Model& model, double dhat);
 
@@ -89,6 +95,9 @@ class BarrierPotential {
   int64_t num_active_pairs() const { return num_active_pairs_; }
   int64_t num_stencils() const { return static_cast<int64_t>(kind_.size()); }
   const std::vector<int32_t>& stencils() const { return stencils_; }            // (num_stencils x 4)
+  const std::vector<StencilKind>& kinds() const { return kind_; }                // (num_stencils)
+  // (num_stencils x 4) real vertex ids, held ones included; vertex-plane: v, plane index.
+  const std::vector<int32_t>& stencil_vertices() const { return vertices_; }
   const std::vector<int32_t>& multiplicities() const { return multiplicity_; }  // (num_stencils)
   const std::vector<int64_t>& slab_begin() const { return slab_begin_; }        // (num_stencils + 1)
   const std::vector<double>& local_hessians() const { return hessians_; }       // (slab_begin.back())
@@ -107,11 +116,6 @@ class BarrierPotential {
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
 
-  // Closest feature of a stencil; decides its size and derivative kernel.
-  enum class StencilKind : uint8_t {
-    vertex_plane, point_point, point_edge, point_triangle, edge_edge, edge_edge_mollified
-  };
-  static int stencil_size(StencilKind kind);  // vertices n: the slab is 3n x 3n
   // A point-point (c = -1) or point-edge feature before merging: its vertices in key order.
   struct FeatureKey {
     int32_t a, b, c;  // point-point: a < b; point-edge: point a, edge b < c

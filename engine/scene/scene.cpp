@@ -154,15 +154,20 @@ void read_solver(const json& j, const Where& w, SolverSettings& solver) {
 // A "contact" object switches contact on ("contact": {} is enough); "enabled": false keeps the
 // settings in the file but turns contact off.
 void read_contact(const json& j, const Where& w, ContactSettings& contact) {
-  check_keys(j, w, {"enabled", "dhat", "friction", "epsv"});
+  check_keys(j, w, {"enabled", "dhat", "friction", "epsv", "friction_iterations"});
   contact.enabled = j.contains("enabled") ? boolean(j["enabled"], w["enabled"]) : true;
   if (j.contains("dhat")) contact.dhat = positive(j["dhat"], w["dhat"]);
   if (j.contains("friction")) {
     contact.friction = number(j["friction"], w["friction"]);
     if (contact.friction < 0.0) w["friction"].fail("expected a number >= 0", j["friction"]);
-    if (contact.friction > 0.0) w["friction"].fail("friction is not available yet (issue 4)", j["friction"]);
   }
   if (j.contains("epsv")) contact.epsv = positive(j["epsv"], w["epsv"]);
+  if (j.contains("friction_iterations")) {
+    const json& value = j["friction_iterations"];
+    if (value.is_string() && value.get<std::string>() == "converged") contact.friction_iterations = -1;
+    else if (value.is_number_integer()) contact.friction_iterations = static_cast<int>(integer(value, w["friction_iterations"], 1));
+    else w["friction_iterations"].fail("expected an integer >= 1 or \"converged\"", value);
+  }
 }
 
 void read_output(const json& j, const Where& w, OutputSettings& output) {

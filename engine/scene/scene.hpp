@@ -39,8 +39,11 @@ struct ContactSettings {
   bool enabled = false;   // true when the scene has a "contact" object, unless "enabled": false
   double dhat = 0.0;      // [m]; 0 = default, resolved by the contact code: 1e-3 of the
                           // bounding-box diagonal of the tet bodies (obstacles excluded)
-  double friction = 0.0;  // Coulomb coefficient; the loader refuses > 0 for now (issue 4)
-  double epsv = 0.0;      // [m/s]; 0 = default
+  double friction = 0.0;  // Coulomb coefficient (0: frictionless)
+  double epsv = 0.0;      // [m/s] sticking slip speed; 0 = default, 1e-3 of the bounding-box
+                          // diagonal per second
+  int friction_iterations = -1;  // lagging iterations per step; -1 (the default): until the normal
+                                 // forces settle (at most kMaxFrictionLags)
 };
 
 struct OutputSettings {

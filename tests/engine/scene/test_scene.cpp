@@ -367,7 +367,10 @@ TEST_CASE("obstacle and contact errors name the key or the file") {
       {scene_with(R"("contact": {}, "time": { "integrator": "symplectic_euler" })"), {},
        {"time.integrator", "symplectic_euler"}},
       {scene_with(R"("contact": {}, "time": { "beta": 0 })"), {}, {"time.integrator", "custom", "beta = 0"}},
-      {scene_with(R"("contact": { "friction": 0.3 })"), {}, {"contact.friction", "not available yet", "0.3"}},
+      {scene_with(R"("contact": { "friction": 0.3, "friction_iterations": 0 })"), {}, {"contact.friction_iterations", "0"}},
+      {scene_with(R"("contact": { "friction": 0.3, "friction_iterations": "forever" })"), {},
+       {"contact.friction_iterations", "converged", "forever"}},
+      {scene_with(R"("contact": { "friction": 0.3, "epsv": -1e-3 })"), {}, {"contact.epsv", "-0.001"}},
       {scene_with(R"("contact": { "friction": -1 })"), {}, {"contact.friction", "-1"}},
       {scene_with(R"("joints": [ { "type": "pin", "body": 3, "point": [0, 0, 0] } ])"), {}, {"joints[0].body", "no such body", "3"}},
       {scene_with(R"("joints": { "type": "pin" })"), {}, {"joints", "expected an array"}},
@@ -381,9 +384,11 @@ TEST_CASE("obstacle and contact errors name the key or the file") {
       CHECK(message.find(part) != std::string::npos);
     }
   }
-  // Without contact an explicit integrator stays allowed, and friction 0 is accepted.
+  // Without contact an explicit integrator stays allowed; friction 0 and > 0 are accepted.
   CHECK(error_of(scene_with(R"("time": { "integrator": "central_difference" })")).empty());
   CHECK(error_of(scene_with(R"("contact": { "friction": 0 })")).empty());
+  CHECK(error_of(scene_with(R"("contact": { "friction": 0.3, "friction_iterations": 2 })")).empty());
+  CHECK(error_of(scene_with(R"("contact": { "friction": 0.3, "friction_iterations": "converged" })")).empty());
 }
 
 TEST_CASE("obj frames leave obstacle triangles out and vtu frames keep obstacle points") {

@@ -1,0 +1,175 @@
+// Lagged friction over the contact stencils (see friction_potential.hpp).
+#include "engine/contact/friction_potential.hpp"
+
+#include "engine/parallel.hpp"
+#include "kernels/distance/edge_edge_mollifier.hpp"
+
+namespace nexdyn {
+
+namespace {
+
+using StencilKind = BarrierPotential::StencilKind;
+
+Eigen::Vector3d point(const double* x, int32_t v) { return Eigen::Vector3d::Map(x + 3 * int64_t{v}); }
+
+// The basis of a nearly parallel edge pair from the closest features of its case (the two
+// interiors only when the edges cross), with the weights placed on the pair's 4 vertices.
+FrictionBasis mollified_edge_basis(const Eigen::Vector3d (&X)[4], EdgeEdgeCase c) {
+  auto scattered = [](const FrictionBasis& sub, std::initializer_list<int> idx) {
+    FrictionBasis full;
+    full.P = sub.P;
+    full.w.setZero();
+    int i = 0;
+    for (int k : idx) full.w(k) = sub.w(i++);
+    full.num_points = 4;
+    return full;
+  };
+  switch (c) {
+    case EdgeEdgeCase::ea0_eb0: return scattered(point_point_friction_basis(X[0], X[2]), {0, 2});
+    case EdgeEdgeCase::ea0_eb1: return scattered(point_point_friction_basis(X[0], X[3]), {0, 3});
+    case EdgeEdgeCase::ea1_eb0: return scattered(point_point_friction_basis(X[1], X[2]), {1, 2});
+    case EdgeEdgeCase::ea1_eb1: return scattered(point_point_friction_basis(X[1], X[3]), {1, 3});
+    case EdgeEdgeCase::ea_eb0: return scattered(point_edge_friction_basis(X[2], X[0], X[1]), {2, 0, 1});
+    case EdgeEdgeCase::ea_eb1: return scattered(point_edge_friction_basis(X[3], X[0], X[1]), {3, 0, 1});
+    case EdgeEdgeCase::ea0_eb: return scattered(point_edge_friction_basis(X[0], X[2], X[3]), {0, 2, 3});
+    case EdgeEdgeCase::ea1_eb: return scattered(point_edge_friction_basis(X[1], X[2], X[3]), {1, 2, 3});
+    case EdgeEdgeCase::ea_eb: break;
+  }
+  return edge_edge_friction_basis(X[0], X[1], X[2], X[3]);
+}
+
+}  // namespace
+
+FrictionPotential::FrictionPotential(const Model& model, double mu, double epsv)
+    : model_(model), mu_(mu), epsv_(epsv) {}
+
+void FrictionPotential::clear() {
+  basis_.clear();
+  normal_force_.clear();
+  vertices_.clear();
+  stencils_.clear();
+  slab_begin_.assign(1, 0);
+  total_normal_force_ = 0.0;
+}
+
+void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, double kappa,
+                            const double* x_start, double dt) {
+  x_start_ = x_start;
+  eps_u_ = epsv_ * dt;
+  const int64_t num = barrier.num_stencils();
+  const double dhat2 = barrier.dhat() * barrier.dhat();
+  const std::vector<StencilKind>& kinds = barrier.kinds();
+  const std::vector<int32_t>& real = barrier.stencil_vertices();
+  const std::vector<int32_t>& multiplicity = barrier.multiplicities();
+  basis_.resize(num);
+  normal_force_.resize(num);
+  vertices_.assign(4 * num, -1);
+  stencils_.assign(4 * num, -1);
+  slab_begin_.resize(num + 1);
+  slab_begin_[0] = 0;
+  parallel_for(num, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const int32_t* v = &real[4 * k];
+      const int n = BarrierPotential::stencil_size(kinds[k]);
+      Eigen::Vector3d X[4];
+      for (int i = 0; i < n && kinds[k] != StencilKind::vertex_plane; ++i) X[i] = point(x, v[i]);
+      double d = 0.0, scale = multiplicity[k];
+      FrictionBasis& basis = basis_[k];
+      switch (kinds[k]) {
+        case StencilKind::vertex_plane: {
+          const ObstaclePlane& plane = model_.obstacle_planes[v[1]];
+          const double h = (point(x, v[0]) - plane.point).dot(plane.normal);
+          d = h * h;
+          basis = vertex_plane_friction_basis(plane.normal);
+          break;
+        }
+        case StencilKind::point_point:
+          d = point_point_distance(X[0], X[1]);
+          basis = point_point_friction_basis(X[0], X[1]);
+          break;
+        case StencilKind::point_edge:
+          d = point_line_distance(X[0], X[1], X[2]);
+          basis = point_edge_friction_basis(X[0], X[1], X[2]);
+          break;
+        case StencilKind::point_triangle:
+          d = point_plane_distance(X[0], X[1], X[2], X[3]);
+          basis = point_triangle_friction_basis(X[0], X[1], X[2], X[3]);
+          break;
+        case StencilKind::edge_edge:
+          d = line_line_distance(X[0], X[1], X[2], X[3]);
+          basis = edge_edge_friction_basis(X[0], X[1], X[2], X[3]);
+          break;
+        case StencilKind::edge_edge_mollified: {
+          const EdgeEdgeCase c = edge_edge_case(X[0], X[1], X[2], X[3]);
+          d = edge_edge_distance(X[0], X[1], X[2], X[3], c);
+          const double* r = model_.rest_positions.data();
+          const double eps_x = edge_edge_mollifier_threshold(point(r, v[0]), point(r, v[1]), point(r, v[2]), point(r, v[3]));
+          scale *= edge_edge_mollifier(X[0], X[1], X[2], X[3], eps_x);
+          basis = mollified_edge_basis(X, c);
+          break;
+        }
+      }
+      normal_force_[k] = scale * friction_normal_force(d, dhat2, kappa);
+      const int points = kinds[k] == StencilKind::vertex_plane ? 1 : n;
+      for (int i = 0; i < points; ++i) {
+        vertices_[4 * k + i] = v[i];
+        stencils_[4 * k + i] = model_.dirichlet[v[i]] < 0 ? v[i] : -1;
+      }
+      slab_begin_[k + 1] = 9 * points * points;
+    }
+  }, 1024);
+  total_normal_force_ = 0.0;
+  for (int64_t k = 0; k < num; ++k) {
+    slab_begin_[k + 1] += slab_begin_[k];
+    total_normal_force_ += normal_force_[k];
+  }
+}
+
+Vector12d FrictionPotential::displacement(const double* x, int64_t k) const {
+  Vector12d dx = Vector12d::Zero();
+  for (int i = 0; i < 4; ++i) {
+    const int32_t v = vertices_[4 * k + i];
+    if (v >= 0) dx.segment<3>(3 * i) = point(x, v) - point(x_start_, v);
+  }
+  return dx;
+}
+
+double FrictionPotential::energy(const double* x) const {
+  return deterministic_sum(num_stencils(), [&](int64_t begin, int64_t end) {
+    double sum = 0.0;
+    for (int64_t k = begin; k < end; ++k)
+      sum += friction_energy(basis_[k], displacement(x, k), mu_, normal_force_[k], eps_u_);
+    return sum;
+  }, 1024);
+}
+
+void FrictionPotential::compute_derivatives(const double* x, double weight, bool with_hessian) {
+  const int64_t num = num_stencils();
+  gradients_.resize(12 * num);
+  if (with_hessian) hessians_.resize(slab_begin_[num]);
+  parallel_for(num, [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const Vector12d dx = displacement(x, k);
+      Eigen::Map<Vector12d>{&gradients_[12 * k]} =
+          weight * friction_gradient(basis_[k], dx, mu_, normal_force_[k], eps_u_);
+      if (!with_hessian) continue;
+      const Matrix12d H = weight * friction_hessian(basis_[k], dx, mu_, normal_force_[k], eps_u_);
+      const int size = 3 * basis_[k].num_points;
+      double* slab = &hessians_[slab_begin_[k]];
+      for (int c = 0; c < size; ++c)
+        for (int r = 0; r < size; ++r) slab[c * size + r] = H(r, c);
+    }
+  }, 256);
+}
+
+void FrictionPotential::add_gradient(double* grad) const {
+  const int64_t num = num_stencils();
+  for (int64_t k = 0; k < num; ++k)
+    for (int i = 0; i < 4; ++i) {
+      const int32_t v = stencils_[4 * k + i];
+      if (v < 0) continue;
+      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients_[12 * k + 3 * i + r];
+    }
+}
+
+}  // namespace nexdyn

@@ -1,0 +1,64 @@
+// IPC's lagged friction over the contact stencils (issue 4; kernels/friction/friction.hpp has
+// the per-contact math and why lagging makes friction a potential).
+//
+// lag() freezes, at positions x^t, one friction stencil per barrier stencil of the active set
+// built at x^t: its tangent basis, closest-point weights and normal force lambda (times the
+// stencil's multiplicity, and the mollifier of a nearly parallel edge pair). Until the next
+// lag(), the friction potential of the step is
+//   D(x) = sum_k mu lambda_k f0(|T_k^T (x - x_n)|),   eps_u = epsv dt,
+// with x_n the positions at the start of the step. Like the barrier's, its derivatives are stored
+// per stencil at the stencil's real size (3n gradient, 3n x 3n PSD slab) and gathered by the
+// caller in stencil order, so results do not depend on the number of threads.
+#pragma once
+
+#include "engine/contact/barrier_potential.hpp"
+#include "engine/model.hpp"
+#include "kernels/friction/friction.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+class FrictionPotential {
+ public:
+  // mu: Coulomb coefficient; epsv: slip speed below which a contact counts as sticking [m/s].
+  FrictionPotential(const Model& model, double mu, double epsv);
+
+  // Bases and normal forces at x_lag from barrier's active set, which must have been built at
+  // x_lag (BarrierPotential::build_active_set) with barrier stiffness kappa; x_start: positions
+  // at the start of the step (kept by pointer until the next lag); dt: the time step.
+  void lag(const BarrierPotential& barrier, const double* x_lag, double kappa, const double* x_start,
+           double dt);
+  // No friction stencils (no contact at the lagged positions, or before the first lag).
+  void clear();
+
+  int64_t num_stencils() const { return static_cast<int64_t>(basis_.size()); }
+  // Sum of the lagged normal forces [N]: the lagging loop compares it between lags.
+  double total_normal_force() const { return total_normal_force_; }
+
+  double energy(const double* x) const;
+  // Derivatives of weight * D at x; layout as BarrierPotential's (stencils, slab_begin).
+  void compute_derivatives(const double* x, double weight, bool with_hessian);
+  void add_gradient(double* grad) const;
+  const std::vector<int32_t>& stencils() const { return stencils_; }       // (num x 4), -1 = held/absent
+  const std::vector<int64_t>& slab_begin() const { return slab_begin_; }   // (num + 1)
+  const std::vector<double>& local_hessians() const { return hessians_; }
+
+ private:
+  Vector12d displacement(const double* x, int64_t k) const;
+
+  const Model& model_;
+  double mu_ = 0.0, epsv_ = 0.0, eps_u_ = 0.0;
+  const double* x_start_ = nullptr;
+  double total_normal_force_ = 0.0;
+  std::vector<FrictionBasis> basis_;     // (num)
+  std::vector<double> normal_force_;     // (num) lambda, multiplicity included [N]
+  std::vector<int32_t> vertices_;        // (num x 4) real vertex ids, -1 past n
+  std::vector<int32_t> stencils_;        // (num x 4) as vertices_, held vertices -1
+  std::vector<int64_t> slab_begin_;      // (num + 1)
+  std::vector<double> gradients_;        // (num x 12)
+  std::vector<double> hessians_;         // (slab_begin_.back())
+};
+
+}  // namespace nexdyn
