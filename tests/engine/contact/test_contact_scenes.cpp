@@ -2,6 +2,7 @@
 // independent exact check finds no two non-adjacent surface triangles intersecting in any OBJ
 // frame (obstacle meshes included) and no vertex behind an obstacle plane. Plus the physics of
 // the head-on collision and thread-count independence with contact.
+#include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/intersection.hpp"
 #include "tests/engine/test_support.hpp"
 
@@ -151,4 +152,79 @@ TEST_CASE("contact results do not depend on the number of threads") {
   }
   // and the frames are bitwise identical
   CHECK(test::read_lines(out1 / "frames" / "frame_000030.obj") == test::read_lines(out2 / "frames" / "frame_000030.obj"));
+}
+
+// Friction scenes (issue 4). Velocities come from stats.csv (momentum / mass), displacements
+// from the first and last OBJ frame.
+namespace {
+
+double total_mass(const Model& model) {
+  double m = 0.0;
+  for (double mi : model.mass) m += mi;
+  return m;
+}
+
+// Mean position of all vertices in an OBJ frame.
+Eigen::Vector3d mean_position(const fs::path& frame) {
+  const std::vector<double> x = obj_positions(frame);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (size_t v = 0; 3 * v < x.size(); ++v) mean += Eigen::Vector3d::Map(&x[3 * v]);
+  return mean / static_cast<double>(x.size() / 3);
+}
+
+// The IPC paper's slope: a stiff unit cube on a plane of slope tan(theta) = 0.5.
+struct Slope {
+  fs::path out;
+  std::vector<StatsRow> rows;
+  Model model;
+  Eigen::Vector3d down;  // unit vector down the slope
+  double velocity(int row) const {
+    return Eigen::Vector3d(rows[row][kPx], rows[row][kPx + 1], rows[row][kPx + 2]).dot(down) / total_mass(model);
+  }
+};
+
+Slope run_slope(const std::string& name) {
+  Slope s;
+  s.out = test::temp_dir(name);
+  s.rows = run_and_check(name, 100, s.out);
+  s.model = load_scene(test::scene_path(name + ".json")).model;
+  REQUIRE(s.model.obstacle_planes.size() == 1);
+  const Eigen::Vector3d n = s.model.obstacle_planes[0].normal;
+  s.down = (Eigen::Vector3d(0, -1, 0) - n * n.dot(Eigen::Vector3d(0, -1, 0))).normalized();
+  CHECK(n.y() / std::hypot(n.x(), n.y()) == doctest::Approx(2 / std::sqrt(5.0)));  // tan(theta) = 0.5
+  return s;
+}
+
+constexpr double kG = 9.81;
+const double kTheta = std::atan(0.5);
+
+}  // namespace
+
+TEST_CASE("scene slope_slide: mu = 0.49 < tan(theta), the cube slides at g (sin - mu cos)") {
+  const Slope s = run_slope("slope_slide");
+  // Rows 20 and 100: t = 0.5 s and 2.5 s (dt = 0.025), after the cube has settled on the plane.
+  const double a = (s.velocity(99) - s.velocity(19)) / 2.0;
+  CHECK(a == doctest::Approx(kG * (std::sin(kTheta) - 0.49 * std::cos(kTheta))).epsilon(0.05));
+}
+
+TEST_CASE("scene slope_stick: mu = 0.51 > tan(theta), the cube sticks up to the epsv creep") {
+  const Slope s = run_slope("slope_stick");
+  // The smoothed friction holds the cube with a creep speed v where mu N f1(v / epsv) balances
+  // the weight along the slope: f1(y) = 2 y - y^2 = tan(theta) / mu.
+  const double epsv = 1e-3 * bodies_bbox_diagonal(s.model);  // the scene's default
+  const double creep = epsv * (1.0 - std::sqrt(1.0 - 0.5 / 0.51));
+  CHECK(s.velocity(99) == doctest::Approx(creep).epsilon(0.05));
+  // The displacement along the slope over the run stays below the creep bound epsv T.
+  const Eigen::Vector3d moved = mean_position(s.out / "frames" / "frame_000100.obj") -
+                                mean_position(s.out / "frames" / "frame_000000.obj");
+  CHECK(std::abs(moved.dot(s.down)) <= epsv * 2.5);
+}
+
+TEST_CASE("scene block_slide: a block at v0 = 1 m/s stops after v0^2 / (2 mu g)") {
+  const fs::path out = test::temp_dir("block_slide");
+  const std::vector<StatsRow> rows = run_and_check("block_slide", 60, out);
+  CHECK(std::abs(rows.back()[kPx]) < 1e-2 * std::abs(rows.front()[kPx]));  // at rest after 0.3 s
+  const Eigen::Vector3d moved = mean_position(out / "frames" / "frame_000060.obj") -
+                                mean_position(out / "frames" / "frame_000000.obj");
+  CHECK(moved.x() == doctest::Approx(1.0 / (2 * 0.5 * kG)).epsilon(0.05));
 }
