@@ -29,6 +29,19 @@
 // The force direction needs f1(y) / y, which is 1 / y above eps_u and 2 / eps_u - y / eps_u^2
 // below: evaluated in that form it has no 0 / 0 at y = 0 and tends to 2 / eps_u.
 //
+// Static and kinetic coefficients. Real surfaces hold with mu_s and slide with mu_k <= mu_s. The
+// force magnitude becomes g(y) = mu(y) f1(y) with
+//   mu(y) = mu_s                                        for y <= eps_u (sticking),
+//         = mu_s + (mu_k - mu_s) s(y / eps_u - 1)       for eps_u < y < 2 eps_u,
+//         = mu_k                                        for y >= 2 eps_u,
+// s(z) = 3 z^2 - 2 z^3 (C1). The transition sits above the sticking band, where f1 = 1, so a
+// contact resists up to the full mu_s lambda before it slips (a transition inside the band
+// would cap the static force near mu_k lambda). Its potential is F0(y) = int_0^y g, which is
+// mu_s f0(y) in the band, then mu_s y + (mu_k - mu_s) eps_u S(y / eps_u - 1) with
+// S(z) = z^3 - z^4 / 2, then mu_k y + (mu_s - mu_k) 3 eps_u / 2 past 2 eps_u. With mu_s = mu_k
+// all of it is mu f0. Where mu falls with speed the potential is not convex along the slip
+// (g' = mu' < 0), and the projection below clamps that eigenvalue to 0.
+//
 // Derivatives. Since T is constant,
 //   grad_x D = mu lambda T (f1(y) / y) u,
 //   hess_x D = mu lambda T M T^T,   M = (f1'(y) y - f1(y)) / y^3 u u^T + (f1(y) / y) I  (2 x 2).
@@ -368,17 +381,43 @@ inline Eigen::Vector2d tangential_displacement(const FrictionBasis& f, const Vec
   return f.P.transpose() * r;
 }
 
-// D = mu lambda f0(|u|).
-inline double friction_energy(const FrictionBasis& f, const Vector12d& dx, double mu,
-                              double lambda, double eps_u) {
-  return mu * lambda * friction_f0(tangential_displacement(f, dx).norm(), eps_u);
+// Coulomb coefficients of a contact (see the top): static, below the sticking speed, and
+// kinetic, above twice it. mu_s = mu_k is plain IPC friction.
+struct FrictionCoefficients {
+  double mu_s = 0.0;
+  double mu_k = 0.0;
+};
+
+// The friction magnitude g(y) = mu(y) f1(y) of a contact and its relatives, y = |u| >= 0.
+struct FrictionMagnitude {
+  double potential;     // F0(y) = int_0^y g (plus the constant mu_s eps_u / 3 of f0)
+  double over_y;        // g(y) / y (limit 2 mu_s / eps_u at 0)
+  double derivative;    // g'(y)
+};
+
+inline FrictionMagnitude friction_magnitude(double y, const FrictionCoefficients& c, double eps_u) {
+  if (y < eps_u || c.mu_s == c.mu_k) {
+    const double mu = y < eps_u ? c.mu_s : c.mu_k;
+    return {mu * friction_f0(y, eps_u), mu * friction_f1_over_y(y, eps_u), mu * friction_f1_derivative(y, eps_u)};
+  }
+  const double jump = c.mu_k - c.mu_s;
+  if (y >= 2.0 * eps_u) return {c.mu_k * y - 1.5 * jump * eps_u, c.mu_k / y, 0.0};
+  const double z = y / eps_u - 1.0;
+  const double mu = c.mu_s + jump * z * z * (3.0 - 2.0 * z);
+  return {c.mu_s * y + jump * eps_u * z * z * z * (1.0 - 0.5 * z), mu / y, jump * 6.0 * z * (1.0 - z) / eps_u};
 }
 
-// grad D = mu lambda T (f1(y) / y) u; zero past 3 n.
-inline Vector12d friction_gradient(const FrictionBasis& f, const Vector12d& dx, double mu,
+// D = lambda F0(|u|) (= mu lambda f0(|u|) for one coefficient).
+inline double friction_energy(const FrictionBasis& f, const Vector12d& dx, const FrictionCoefficients& c,
+                              double lambda, double eps_u) {
+  return lambda * friction_magnitude(tangential_displacement(f, dx).norm(), c, eps_u).potential;
+}
+
+// grad D = lambda T (g(y) / y) u; zero past 3 n.
+inline Vector12d friction_gradient(const FrictionBasis& f, const Vector12d& dx, const FrictionCoefficients& c,
                                    double lambda, double eps_u) {
   const Eigen::Vector2d u = tangential_displacement(f, dx);
-  const Eigen::Vector3d t = (mu * lambda * friction_f1_over_y(u.norm(), eps_u)) * (f.P * u);
+  const Eigen::Vector3d t = (lambda * friction_magnitude(u.norm(), c, eps_u).over_y) * (f.P * u);
   Vector12d g;
   g.setZero();
   for (int i = 0; i < f.num_points; ++i) g.segment<3>(3 * i) = f.w(i) * t;
@@ -387,34 +426,37 @@ inline Vector12d friction_gradient(const FrictionBasis& f, const Vector12d& dx, 
 
 // The friction force on each stencil vertex, -grad D (for reporting). It sums to zero over the
 // stencil (sum_i w_i = 0) except for vertex-plane, whose reaction acts on the fixed plane. While
-// sliding (|u| >= eps_u) the vertices of side A (w_i > 0) together receive exactly
-// -mu lambda P u / |u|: Coulomb's force, opposing the tangential relative displacement.
-inline Vector12d friction_force(const FrictionBasis& f, const Vector12d& dx, double mu,
+// sliding (|u| >= 2 eps_u) the vertices of side A (w_i > 0) together receive exactly
+// -mu_k lambda P u / |u|: Coulomb's force, opposing the tangential relative displacement.
+inline Vector12d friction_force(const FrictionBasis& f, const Vector12d& dx, const FrictionCoefficients& c,
                                 double lambda, double eps_u) {
-  return -friction_gradient(f, dx, mu, lambda, eps_u);
+  return -friction_gradient(f, dx, c, lambda, eps_u);
 }
 
-// The 2 x 2 M of hess D = mu lambda T M T^T, PSD-projected in closed form: eigenvalue f1'(y)
-// along u_hat = u / y and f1(y) / y across it, each clamped at 0 (a no-op but for rounding with
-// this f1, see the top). y = 0: (2 / eps_u) I.
-inline Eigen::Matrix2d friction_tangent_hessian(const Eigen::Vector2d& u, double eps_u) {
+// The 2 x 2 M of hess D = lambda T M T^T, PSD-projected in closed form: eigenvalue g'(y) along
+// u_hat = u / y and g(y) / y across it, each clamped at 0 (with one coefficient both are >= 0
+// and the clamp only removes rounding; with mu_k < mu_s, g' < 0 in the transition). y = 0:
+// (2 mu_s / eps_u) I.
+inline Eigen::Matrix2d friction_tangent_hessian(const Eigen::Vector2d& u, const FrictionCoefficients& c,
+                                                double eps_u) {
   const double y = u.norm();
-  const double across = std::max(0.0, friction_f1_over_y(y, eps_u));
+  const FrictionMagnitude g = friction_magnitude(y, c, eps_u);
+  const double across = std::max(0.0, g.over_y);
   Eigen::Matrix2d M = across * Eigen::Matrix2d::Identity();
   if (y > 0.0) {
-    const double along = std::max(0.0, friction_f1_derivative(y, eps_u));
+    const double along = std::max(0.0, g.derivative);
     const Eigen::Vector2d u_hat = u / y;
     M.noalias() += (along - across) * (u_hat * u_hat.transpose());
   }
   return M;
 }
 
-// hess D = mu lambda T M T^T, built as 3 x 3 blocks w_i w_j (mu lambda P M P^T): exact (T is
-// constant) and PSD (M is). Zero past 3 n.
-inline Matrix12d friction_hessian(const FrictionBasis& f, const Vector12d& dx, double mu,
+// hess D = lambda T M T^T, built as 3 x 3 blocks w_i w_j (lambda P M P^T): exact where g' >= 0
+// (T is constant) and PSD (M is). Zero past 3 n.
+inline Matrix12d friction_hessian(const FrictionBasis& f, const Vector12d& dx, const FrictionCoefficients& c,
                                   double lambda, double eps_u) {
-  const Eigen::Matrix2d M = friction_tangent_hessian(tangential_displacement(f, dx), eps_u);
-  Eigen::Matrix3d A = (mu * lambda) * (f.P * M * f.P.transpose());
+  const Eigen::Matrix2d M = friction_tangent_hessian(tangential_displacement(f, dx), c, eps_u);
+  Eigen::Matrix3d A = lambda * (f.P * M * f.P.transpose());
   // Exactly symmetric, so that the assembled matrix is too (CHOLMOD reads one triangle).
   A = 0.5 * (A + A.transpose()).eval();
   Matrix12d H;
@@ -425,6 +467,27 @@ inline Matrix12d friction_hessian(const FrictionBasis& f, const Vector12d& dx, d
     }
   }
   return H;
+}
+
+// One coefficient mu (mu_s = mu_k): D = mu lambda f0(|u|).
+inline double friction_energy(const FrictionBasis& f, const Vector12d& dx, double mu, double lambda, double eps_u) {
+  return friction_energy(f, dx, FrictionCoefficients{mu, mu}, lambda, eps_u);
+}
+inline Vector12d friction_gradient(const FrictionBasis& f, const Vector12d& dx, double mu, double lambda,
+                                   double eps_u) {
+  return friction_gradient(f, dx, FrictionCoefficients{mu, mu}, lambda, eps_u);
+}
+inline Vector12d friction_force(const FrictionBasis& f, const Vector12d& dx, double mu, double lambda,
+                                double eps_u) {
+  return -friction_gradient(f, dx, FrictionCoefficients{mu, mu}, lambda, eps_u);
+}
+inline Matrix12d friction_hessian(const FrictionBasis& f, const Vector12d& dx, double mu, double lambda,
+                                  double eps_u) {
+  return friction_hessian(f, dx, FrictionCoefficients{mu, mu}, lambda, eps_u);
+}
+// M for mu = 1: eigenvalues f1'(y) along u and f1(y) / y across.
+inline Eigen::Matrix2d friction_tangent_hessian(const Eigen::Vector2d& u, double eps_u) {
+  return friction_tangent_hessian(u, FrictionCoefficients{1.0, 1.0}, eps_u);
 }
 
 }  // namespace nexdyn

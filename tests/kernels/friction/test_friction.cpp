@@ -5,7 +5,8 @@
 // to the normal (and D unchanged by rotating it in the plane), zero slip under rigid translation
 // and under motion along the normal, and the friction potential's gradient and Hessian in x
 // against central differences in the static band (|u| < eps_u) and while sliding (|u| > eps_u);
-// Coulomb's law while sliding (force of magnitude mu lambda against the slip); the closed-form
+// Coulomb's law while sliding (force of magnitude mu lambda against the slip); static and kinetic
+// coefficients (the magnitude from mu_s to mu_k, derivatives again); the closed-form
 // 2 x 2 Hessian against an eigensolver (PSD); parallel and degenerate edges.
 #include "kernels/barrier/barrier.hpp"
 #include "kernels/friction/friction.hpp"
@@ -278,11 +279,12 @@ TEST_CASE("friction: rigid translation and motion along the normal give no slip"
   }
 }
 
-// D(x) = mu lambda f0(|T^T (x - x_prev)|) with the basis lagged at X: gradient and Hessian
-// against central differences in x, at |u| = y_over_eps * eps_u.
-void check_friction_derivatives(double y_lo, double y_hi, uint64_t seed) {
+// D(x) = lambda F0(|T^T (x - x_prev)|) with the basis lagged at X: gradient and (with_hessian)
+// Hessian against central differences in x, at |u| in [y_lo, y_hi] eps_u.
+void check_friction_derivatives(double y_lo, double y_hi, uint64_t seed,
+                                FrictionCoefficients mu = {0.4, 0.4}, bool with_hessian = true) {
   std::mt19937_64 rng(seed);
-  const double eps_u = 1e-3, mu = 0.4, lambda = 2.5;
+  const double eps_u = 1e-3, lambda = 2.5;
   for (FrictionStencil kind : kKinds) {
     const std::string name = kind_name(kind);
     CAPTURE(name);
@@ -315,7 +317,7 @@ void check_friction_derivatives(double y_lo, double y_hi, uint64_t seed) {
       const Vector12d g = gradient(x);
       const Matrix12d H = friction_hessian(f, x - x_prev, mu, lambda, eps_u);
       CHECK(relative_error(g, g_fd, 1e-12) < 1e-6);
-      CHECK(relative_error(H, H_fd, 1e-12) < 1e-5);
+      if (with_hessian) CHECK(relative_error(H, H_fd, 1e-12) < 1e-5);
       CHECK((H - H.transpose()).norm() == 0.0);
       // Zero past the stencil's 3 n DOFs.
       double padding = 0.0;
@@ -333,6 +335,56 @@ TEST_CASE("friction: derivatives match finite differences in the static band") {
 
 TEST_CASE("friction: derivatives match finite differences while sliding") {
   check_friction_derivatives(1.05, 20.0, 13);
+}
+
+// Static and kinetic coefficients (mu_s 0.6, mu_k 0.4): the same checks in the sticking band and
+// past the transition, where g' >= 0 and the Hessian is exact; in the transition g' < 0 is
+// clamped, so only the gradient is compared there.
+TEST_CASE("friction: static and kinetic coefficients, derivatives match finite differences") {
+  const FrictionCoefficients mu{0.6, 0.4};
+  check_friction_derivatives(0.05, 0.95, 21, mu);
+  check_friction_derivatives(2.05, 20.0, 23, mu);
+  check_friction_derivatives(1.05, 1.95, 25, mu, false);
+}
+
+TEST_CASE("friction: static and kinetic magnitude, from mu_s at the sticking speed to mu_k") {
+  const double eps_u = 2e-3;
+  const FrictionCoefficients c{0.6, 0.4}, one{0.5, 0.5};
+  auto g = [&](double y, const FrictionCoefficients& k) { return y * friction_magnitude(y, k, eps_u).over_y; };
+  // The full static force at the edge of the sticking band, the kinetic one from 2 eps_u on.
+  CHECK(g(eps_u, c) == doctest::Approx(0.6).epsilon(1e-14));
+  CHECK(g(2 * eps_u, c) == doctest::Approx(0.4).epsilon(1e-14));
+  CHECK(g(7 * eps_u, c) == doctest::Approx(0.4).epsilon(1e-14));
+  // Nowhere above mu_s, and below it in the band only as f1 is.
+  for (int i = 1; i < 800; ++i) {
+    const double y = 4.0 * eps_u * i / 800.0;
+    CAPTURE(y);
+    CHECK(g(y, c) <= 0.6 * (1 + 1e-14));
+    if (y < eps_u) CHECK(g(y, c) == doctest::Approx(0.6 * friction_f1(y, eps_u)).epsilon(1e-14));
+    // F0' = g and g' by central differences away from the joints at eps_u and 2 eps_u; F0 and g
+    // continuous across them.
+    const double h = 1e-6 * eps_u;
+    if (std::abs(y - eps_u) > 1e-3 * eps_u && std::abs(y - 2 * eps_u) > 1e-3 * eps_u) {
+      const double dF = (friction_magnitude(y + h, c, eps_u).potential - friction_magnitude(y - h, c, eps_u).potential) / (2 * h);
+      CHECK(g(y, c) == doctest::Approx(dF).epsilon(1e-7));
+      const double dg = (g(y + h, c) - g(y - h, c)) / (2 * h);
+      CHECK(std::abs(friction_magnitude(y, c, eps_u).derivative - dg) <= 1e-6 * (0.6 / eps_u));  // g' ~ mu / eps_u
+    }
+    // One coefficient: exactly mu f0, mu f1 / y, mu f1'.
+    const FrictionMagnitude m = friction_magnitude(y, one, eps_u);
+    CHECK(m.potential == 0.5 * friction_f0(y, eps_u));
+    CHECK(m.over_y == 0.5 * friction_f1_over_y(y, eps_u));
+    CHECK(m.derivative == 0.5 * friction_f1_derivative(y, eps_u));
+  }
+  for (double joint : {eps_u, 2 * eps_u}) {
+    const double below = joint * (1 - 1e-12), above = joint * (1 + 1e-12);
+    CHECK(friction_magnitude(below, c, eps_u).potential == doctest::Approx(friction_magnitude(above, c, eps_u).potential).epsilon(1e-10));
+    CHECK(g(below, c) == doctest::Approx(g(above, c)).epsilon(1e-9));
+  }
+  // The projected 2 x 2 Hessian stays PSD where g' < 0.
+  const Eigen::Matrix2d M = friction_tangent_hessian(Eigen::Vector2d(1.5 * eps_u, 0.0), c, eps_u);
+  CHECK(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(M).eigenvalues().minCoeff() >= 0.0);
+  CHECK(friction_magnitude(1.5 * eps_u, c, eps_u).derivative < 0.0);
 }
 
 TEST_CASE("friction: sliding force has magnitude mu lambda and opposes the slip") {
