@@ -35,6 +35,8 @@ struct BodyRange {
   int32_t scene_entry = 0;  // index of the "bodies" entry of the scene file it came from
                             // (of the "obstacles" entry when obstacle is true)
   bool obstacle = false;    // a static obstacle mesh: no tets, every vertex fixed, mass 0
+  int32_t material = -1;    // index into materials (an obstacle's optional "material": -1 = none);
+                            // friction coefficients are looked up per material pair
 };
 
 // An analytic obstacle plane {x : (x - point) . normal = 0}; bodies stay on the side the normal
@@ -43,6 +45,7 @@ struct ObstaclePlane {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();   // [m]
   Eigen::Vector3d normal = Eigen::Vector3d::UnitY(); // unit length
   int32_t scene_entry = 0;                           // index of its "obstacles" entry
+  int32_t material = -1;                             // its optional "material" (friction), -1 = none
 };
 
 // Consecutive tets sharing one material: the unit over which kernels dispatch on the model.

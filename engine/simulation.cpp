@@ -40,10 +40,15 @@ std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
 }
 
 std::unique_ptr<FrictionPotential> make_friction(const Scene& scene) {
-  if (!scene.contact.enabled || !(scene.contact.friction > 0.0)) return nullptr;
+  const ContactSettings& contact = scene.contact;
+  if (!contact.has_friction()) return nullptr;
+  auto both = [](double mu_k, double mu_s) { return FrictionCoefficients{mu_s < 0.0 ? mu_k : mu_s, mu_k}; };
+  FrictionTable table(static_cast<int32_t>(scene.model.materials.size()), both(contact.friction, contact.static_friction));
+  for (const ContactSettings::FrictionPair& pair : contact.friction_pairs)
+    table.set(pair.a, pair.b, both(pair.friction, pair.static_friction));
   const double diagonal = bodies_bbox_diagonal(scene.model);
-  const double epsv = scene.contact.epsv > 0.0 ? scene.contact.epsv : 1e-3 * (diagonal > 0.0 ? diagonal : 1.0);
-  return std::make_unique<FrictionPotential>(scene.model, scene.contact.friction, epsv);
+  const double epsv = contact.epsv > 0.0 ? contact.epsv : 1e-3 * (diagonal > 0.0 ? diagonal : 1.0);
+  return std::make_unique<FrictionPotential>(scene.model, std::move(table), epsv);
 }
 }  // namespace
 
@@ -278,7 +283,11 @@ StepOutcome Simulation::start_point(double t_next) {
       return {StepStatus::boundary_collision, "the prescribed motion of the boundary vertices runs into "
                                       "contact; this version cannot push bodies with it"};
   }
-  if (is_static) return {};
+  // With static friction above kinetic, the step's potential is not convex in the slip: a stuck
+  // and a sliding minimum can coexist, and the predictor (free flight) would start Newton in the
+  // sliding one. From x_n (no slip) a contact that can stick stays stuck, and a body whose
+  // momentum beats static friction has no stuck minimum and slides all the same.
+  if (is_static || (friction_ && friction_->table().has_static_peak())) return {};
   // Then as far toward the predictor as CCD allows (it stops short of any contact).
   for (int32_t v = 0; v < model_.num_vertices; ++v)
     for (int d = 0; d < 3; ++d) {

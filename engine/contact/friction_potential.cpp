@@ -40,11 +40,22 @@ FrictionBasis mollified_edge_basis(const Eigen::Vector3d (&X)[4], EdgeEdgeCase c
 
 }  // namespace
 
-FrictionPotential::FrictionPotential(const Model& model, double mu, double epsv)
-    : model_(model), mu_(mu), epsv_(epsv) {}
+FrictionPotential::FrictionPotential(const Model& model, FrictionTable table, double epsv)
+    : model_(model), table_(std::move(table)), epsv_(epsv) {}
+
+int32_t FrictionPotential::vertex_material(int32_t v) const {
+  const int32_t m = model_.bodies[model_.vertex_body[v]].material;
+  return m >= 0 ? m : table_.none();
+}
+
+int32_t FrictionPotential::plane_material(int32_t plane) const {
+  const int32_t m = model_.obstacle_planes[plane].material;
+  return m >= 0 ? m : table_.none();
+}
 
 void FrictionPotential::clear() {
   basis_.clear();
+  mu_.clear();
   normal_force_.clear();
   vertices_.clear();
   stencils_.clear();
@@ -62,6 +73,7 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
   const std::vector<int32_t>& real = barrier.stencil_vertices();
   const std::vector<int32_t>& multiplicity = barrier.multiplicities();
   basis_.resize(num);
+  mu_.resize(num);
   normal_force_.resize(num);
   vertices_.assign(4 * num, -1);
   stencils_.assign(4 * num, -1);
@@ -110,6 +122,9 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
         }
       }
       normal_force_[k] = scale * friction_normal_force(d, dhat2, kappa);
+      // Side A is the stencil's first vertex; side B its last (a plane, a triangle or edge b).
+      const int32_t side_b = kinds[k] == StencilKind::vertex_plane ? plane_material(v[1]) : vertex_material(v[n - 1]);
+      mu_[k] = table_(vertex_material(v[0]), side_b);
       const int points = kinds[k] == StencilKind::vertex_plane ? 1 : n;
       for (int i = 0; i < points; ++i) {
         vertices_[4 * k + i] = v[i];
@@ -138,7 +153,7 @@ double FrictionPotential::energy(const double* x) const {
   return deterministic_sum(num_stencils(), [&](int64_t begin, int64_t end) {
     double sum = 0.0;
     for (int64_t k = begin; k < end; ++k)
-      sum += friction_energy(basis_[k], displacement(x, k), mu_, normal_force_[k], eps_u_);
+      sum += friction_energy(basis_[k], displacement(x, k), mu_[k], normal_force_[k], eps_u_);
     return sum;
   }, 1024);
 }
@@ -151,9 +166,9 @@ void FrictionPotential::compute_derivatives(const double* x, double weight, bool
     for (int64_t k = begin; k < end; ++k) {
       const Vector12d dx = displacement(x, k);
       Eigen::Map<Vector12d>{&gradients_[12 * k]} =
-          weight * friction_gradient(basis_[k], dx, mu_, normal_force_[k], eps_u_);
+          weight * friction_gradient(basis_[k], dx, mu_[k], normal_force_[k], eps_u_);
       if (!with_hessian) continue;
-      const Matrix12d H = weight * friction_hessian(basis_[k], dx, mu_, normal_force_[k], eps_u_);
+      const Matrix12d H = weight * friction_hessian(basis_[k], dx, mu_[k], normal_force_[k], eps_u_);
       const int size = 3 * basis_[k].num_points;
       double* slab = &hessians_[slab_begin_[k]];
       for (int c = 0; c < size; ++c)

@@ -5,7 +5,9 @@
 // built at x^t: its tangent basis, closest-point weights and normal force lambda (times the
 // stencil's multiplicity, and the mollifier of a nearly parallel edge pair). Until the next
 // lag(), the friction potential of the step is
-//   D(x) = sum_k mu lambda_k f0(|T_k^T (x - x_n)|),   eps_u = epsv dt,
+//   D(x) = sum_k lambda_k F0_k(|T_k^T (x - x_n)|),   eps_u = epsv dt,
+// F0_k the smoothed Coulomb potential of the contact's static and kinetic coefficients (mu f0
+// for one coefficient; kernels/friction/friction.hpp), looked up per pair of materials,
 // with x_n the positions at the start of the step. Like the barrier's, its derivatives are stored
 // per stencil at the stencil's real size (3n gradient, 3n x 3n PSD slab) and gathered by the
 // caller in stencil order, so results do not depend on the number of threads.
@@ -20,10 +22,32 @@
 
 namespace nexdyn {
 
+// Coefficients of every pair of contact materials: indices of model.materials, plus one more,
+// none(), for obstacles without a material. Symmetric.
+class FrictionTable {
+ public:
+  FrictionTable(int32_t num_materials, FrictionCoefficients fallback)
+      : size_(num_materials + 1), table_(size_t(size_) * size_, fallback) {}
+  int32_t none() const { return size_ - 1; }
+  void set(int32_t a, int32_t b, FrictionCoefficients c) { table_[a * size_ + b] = table_[b * size_ + a] = c; }
+  const FrictionCoefficients& operator()(int32_t a, int32_t b) const { return table_[a * size_ + b]; }
+  // Some pair holds harder than it slides (mu_s > mu_k): the step is then not convex in the slip.
+  bool has_static_peak() const {
+    for (const FrictionCoefficients& c : table_)
+      if (c.mu_s > c.mu_k) return true;
+    return false;
+  }
+
+ private:
+  int32_t size_;
+  std::vector<FrictionCoefficients> table_;
+};
+
 class FrictionPotential {
  public:
-  // mu: Coulomb coefficient; epsv: slip speed below which a contact counts as sticking [m/s].
-  FrictionPotential(const Model& model, double mu, double epsv);
+  // table: Coulomb coefficients per material pair; epsv: slip speed below which a contact counts
+  // as sticking [m/s].
+  FrictionPotential(const Model& model, FrictionTable table, double epsv);
 
   // Bases and normal forces at x_lag from barrier's active set, which must have been built at
   // x_lag (BarrierPotential::build_active_set) with barrier stiffness kappa; x_start: positions
@@ -33,6 +57,7 @@ class FrictionPotential {
   // No friction stencils (no contact at the lagged positions, or before the first lag).
   void clear();
 
+  const FrictionTable& table() const { return table_; }
   int64_t num_stencils() const { return static_cast<int64_t>(basis_.size()); }
   // Sum of the lagged normal forces [N]: the lagging loop compares it between lags.
   double total_normal_force() const { return total_normal_force_; }
@@ -48,11 +73,17 @@ class FrictionPotential {
  private:
   Vector12d displacement(const double* x, int64_t k) const;
 
+  // Material slot of a vertex's body, or of obstacle plane `plane`, in table_.
+  int32_t vertex_material(int32_t v) const;
+  int32_t plane_material(int32_t plane) const;
+
   const Model& model_;
-  double mu_ = 0.0, epsv_ = 0.0, eps_u_ = 0.0;
+  FrictionTable table_;
+  double epsv_ = 0.0, eps_u_ = 0.0;
   const double* x_start_ = nullptr;
   double total_normal_force_ = 0.0;
   std::vector<FrictionBasis> basis_;     // (num)
+  std::vector<FrictionCoefficients> mu_; // (num) of the two sides' materials
   std::vector<double> normal_force_;     // (num) lambda, multiplicity included [N]
   std::vector<int32_t> vertices_;        // (num x 4) real vertex ids, -1 past n
   std::vector<int32_t> stencils_;        // (num x 4) as vertices_, held vertices -1

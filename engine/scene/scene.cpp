@@ -102,6 +102,18 @@ std::string string(const json& value, const Where& where) {
   return value.get<std::string>();
 }
 
+double non_negative(const json& value, const Where& where) {
+  const double x = number(value, where);
+  if (x < 0.0) where.fail("expected a number >= 0", value);
+  return x;
+}
+
+// Static friction below kinetic friction is not a physical surface.
+void check_static_friction(double mu_s, double mu_k, const Where& where) {
+  if (mu_s < mu_k)
+    where.fail("static friction must be at least the kinetic \"friction\" " + json(mu_k).dump(), json(mu_s));
+}
+
 bool boolean(const json& value, const Where& where) {
   if (!value.is_boolean()) where.fail("expected true or false", value);
   return value.get<bool>();
@@ -154,12 +166,14 @@ void read_solver(const json& j, const Where& w, SolverSettings& solver) {
 // A "contact" object switches contact on ("contact": {} is enough); "enabled": false keeps the
 // settings in the file but turns contact off.
 void read_contact(const json& j, const Where& w, ContactSettings& contact) {
-  check_keys(j, w, {"enabled", "dhat", "friction", "epsv", "friction_iterations"});
+  check_keys(j, w, {"enabled", "dhat", "friction", "static_friction", "friction_pairs", "epsv",
+                    "friction_iterations"});
   contact.enabled = j.contains("enabled") ? boolean(j["enabled"], w["enabled"]) : true;
   if (j.contains("dhat")) contact.dhat = positive(j["dhat"], w["dhat"]);
-  if (j.contains("friction")) {
-    contact.friction = number(j["friction"], w["friction"]);
-    if (contact.friction < 0.0) w["friction"].fail("expected a number >= 0", j["friction"]);
+  if (j.contains("friction")) contact.friction = non_negative(j["friction"], w["friction"]);
+  if (j.contains("static_friction")) {
+    contact.static_friction = non_negative(j["static_friction"], w["static_friction"]);
+    check_static_friction(contact.static_friction, contact.friction, w["static_friction"]);
   }
   if (j.contains("epsv")) contact.epsv = positive(j["epsv"], w["epsv"]);
   if (j.contains("friction_iterations")) {
@@ -167,6 +181,43 @@ void read_contact(const json& j, const Where& w, ContactSettings& contact) {
     if (value.is_string() && value.get<std::string>() == "converged") contact.friction_iterations = -1;
     else if (value.is_number_integer()) contact.friction_iterations = static_cast<int>(integer(value, w["friction_iterations"], 1));
     else w["friction_iterations"].fail("expected an integer >= 1 or \"converged\"", value);
+  }
+  // "friction_pairs" names materials: read by read_friction_pairs once they are known.
+}
+
+// A material name of the scene's "materials".
+int32_t material_id(const json& value, const Where& w, const std::map<std::string, int32_t>& material_ids) {
+  const std::string name = string(value, w);
+  const auto found = material_ids.find(name);
+  if (found == material_ids.end()) w.fail("no material named \"" + name + "\" in \"materials\"");
+  return found->second;
+}
+
+// "friction_pairs": [{ "materials": [a, b], "friction": mu_k, "static_friction": mu_s }, ...].
+void read_friction_pairs(const json& j, const Where& w, const std::map<std::string, int32_t>& material_ids,
+                         ContactSettings& contact) {
+  if (!j.is_array()) w.fail("expected an array", j);
+  for (size_t i = 0; i < j.size(); ++i) {
+    const json& entry = j[i];
+    const Where we = w[i];
+    if (!entry.is_object()) we.fail("expected an object", entry);
+    check_keys(entry, we, {"materials", "friction", "static_friction"});
+    if (!entry.contains("materials") || !entry.contains("friction")) we.fail("needs \"materials\" and \"friction\"");
+    const json& names = entry["materials"];
+    if (!names.is_array() || names.size() != 2) we["materials"].fail("expected two material names", names);
+    ContactSettings::FrictionPair pair;
+    pair.a = material_id(names[0], we["materials"][0], material_ids);
+    pair.b = material_id(names[1], we["materials"][1], material_ids);
+    if (pair.a > pair.b) std::swap(pair.a, pair.b);
+    pair.friction = non_negative(entry["friction"], we["friction"]);
+    pair.static_friction = pair.friction;
+    if (entry.contains("static_friction")) {
+      pair.static_friction = non_negative(entry["static_friction"], we["static_friction"]);
+      check_static_friction(pair.static_friction, pair.friction, we["static_friction"]);
+    }
+    for (const ContactSettings::FrictionPair& other : contact.friction_pairs)
+      if (other.a == pair.a && other.b == pair.b) we["materials"].fail("this pair of materials is already given", names);
+    contact.friction_pairs.push_back(pair);
   }
 }
 
@@ -305,10 +356,7 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
   body.surface = &cache.entries.at(key).second;
 
   if (!j.contains("material")) w.fail("missing key \"material\"");
-  const std::string material = string(j["material"], w["material"]);
-  const auto found = material_ids.find(material);
-  if (found == material_ids.end()) w["material"].fail("no material named \"" + material + "\" in \"materials\"");
-  body.material = found->second;
+  body.material = material_id(j["material"], w["material"], material_ids);
 
   const Transform transform = read_transform(j, w);
   body.linear = transform.linear;
@@ -344,6 +392,7 @@ void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t sc
   range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
   range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
   range.scene_entry = scene_entry;
+  range.material = spec.material;
   const int32_t body_id = static_cast<int32_t>(model.bodies.size());
   const int32_t base = range.vertex_begin;
 
@@ -722,7 +771,7 @@ const ObstacleMesh& read_obstacle_mesh(const json& j, const Where& w, const fs::
 // Appends a static obstacle mesh as a body: no tets, mass 0, every vertex on the shared fixed
 // motion `fixed_motion`, zero initial velocity. Its triangles join the collision surface.
 void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32_t scene_entry,
-                     int32_t fixed_motion, Model& model, State& state) {
+                     int32_t material, int32_t fixed_motion, Model& model, State& state) {
   BodyRange range;
   range.vertex_begin = model.num_vertices;
   range.vertex_count = static_cast<int32_t>(mesh.positions.size() / 3);
@@ -734,6 +783,7 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
   range.edge_count = static_cast<int32_t>(mesh.edges.size() / 2);
   range.scene_entry = scene_entry;
   range.obstacle = true;
+  range.material = material;
   const int32_t body_id = static_cast<int32_t>(model.bodies.size());
   const int32_t base = range.vertex_begin;
 
@@ -760,11 +810,14 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
 // One entry of "obstacles": a plane or a static mesh. `fixed_motion` is the id of the shared
 // fixed Dirichlet motion, created on the first mesh (-1 until then).
 void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs::path& scene_dir,
-                   ObstacleCache& cache, int32_t& fixed_motion, Model& model, State& state) {
+                   const std::map<std::string, int32_t>& material_ids, ObstacleCache& cache,
+                   int32_t& fixed_motion, Model& model, State& state) {
   if (!j.is_object()) w.fail("expected an object", j);
   if (j.contains("plane") == j.contains("mesh")) w.fail("give exactly one of \"plane\" and \"mesh\"");
+  // Only friction reads an obstacle's material (contact.friction_pairs).
+  const int32_t material = j.contains("material") ? material_id(j["material"], w["material"], material_ids) : -1;
   if (j.contains("plane")) {
-    check_keys(j, w, {"plane"});
+    check_keys(j, w, {"plane", "material"});
     const json& plane = j["plane"];
     const Where wp = w["plane"];
     check_keys(plane, wp, {"point", "normal"});
@@ -776,10 +829,11 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
     if (!(length > 0.0) || !std::isfinite(length)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
     p.normal = normal / length;
     p.scene_entry = scene_entry;
+    p.material = material;
     model.obstacle_planes.push_back(p);
     return;
   }
-  check_keys(j, w, {"mesh", "translate", "rotate_deg", "scale"});
+  check_keys(j, w, {"mesh", "material", "translate", "rotate_deg", "scale"});
   const ObstacleMesh& mesh = read_obstacle_mesh(j, w, scene_dir, cache);
   const Transform transform = read_transform(j, w);
   if (int64_t{model.num_vertices} + static_cast<int64_t>(mesh.positions.size() / 3) > (int64_t{1} << 30))
@@ -788,7 +842,7 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
     fixed_motion = static_cast<int32_t>(model.dirichlet_motions.size());
     model.dirichlet_motions.push_back(DirichletMotion{});  // velocity 0, angular velocity 0
   }
-  append_obstacle(mesh, transform, scene_entry, fixed_motion, model, state);
+  append_obstacle(mesh, transform, scene_entry, material, fixed_motion, model, state);
 }
 
 }  // namespace
@@ -834,6 +888,8 @@ Scene load_scene(const fs::path& file) {
     material_ids[item.key()] = static_cast<int32_t>(scene.model.materials.size());
     scene.model.materials.push_back(read_material(item.key(), item.value(), w["materials"][item.key()]));
   }
+  if (root.contains("contact") && root["contact"].contains("friction_pairs"))
+    read_friction_pairs(root["contact"]["friction_pairs"], w["contact"]["friction_pairs"], material_ids, scene.contact);
 
   // Bodies.
   if (!root.contains("bodies")) w.fail("missing key \"bodies\"");
@@ -878,8 +934,8 @@ Scene load_scene(const fs::path& file) {
     ObstacleCache obstacle_cache;
     int32_t fixed_motion = -1;
     for (size_t i = 0; i < obstacles.size(); ++i)
-      read_obstacle(obstacles[i], w["obstacles"][i], static_cast<int32_t>(i), scene_dir, obstacle_cache,
-                    fixed_motion, scene.model, scene.initial);
+      read_obstacle(obstacles[i], w["obstacles"][i], static_cast<int32_t>(i), scene_dir, material_ids,
+                    obstacle_cache, fixed_motion, scene.model, scene.initial);
   }
 
   scene.initial.x = scene.model.rest_positions;

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace nexdyn {
 
@@ -39,11 +40,23 @@ struct ContactSettings {
   bool enabled = false;   // true when the scene has a "contact" object, unless "enabled": false
   double dhat = 0.0;      // [m]; 0 = default, resolved by the contact code: 1e-3 of the
                           // bounding-box diagonal of the tet bodies (obstacles excluded)
-  double friction = 0.0;  // Coulomb coefficient (0: frictionless)
+  double friction = 0.0;  // Coulomb coefficient, kinetic (0: frictionless)
+  double static_friction = -1.0;  // static Coulomb coefficient, >= friction; < 0: = friction
+  // A per-material-pair override of the two coefficients (material indices, a <= b).
+  struct FrictionPair {
+    int32_t a = 0, b = 0;
+    double friction = 0.0, static_friction = 0.0;
+  };
+  std::vector<FrictionPair> friction_pairs;
   double epsv = 0.0;      // [m/s] sticking slip speed; 0 = default, 1e-3 of the bounding-box
                           // diagonal per second
   int friction_iterations = -1;  // lagging iterations per step; -1 (the default): until the normal
                                  // forces settle (at most kMaxFrictionLags)
+  bool has_friction() const {
+    bool any = friction > 0.0 || static_friction > 0.0;
+    for (const FrictionPair& pair : friction_pairs) any = any || pair.static_friction > 0.0;
+    return enabled && any;
+  }
 };
 
 struct OutputSettings {

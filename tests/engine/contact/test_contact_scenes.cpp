@@ -11,6 +11,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <utility>
 #include <sstream>
 
 using namespace nexdyn;
@@ -51,11 +53,9 @@ std::vector<double> obj_positions(const fs::path& file) {
   return x;
 }
 
-// Runs a shipped scene for `steps` steps and checks the contact invariants on every row and
-// every OBJ frame, writing into `out` (a fresh temporary folder when empty). Returns the rows.
-std::vector<StatsRow> run_and_check(const std::string& name, int steps, fs::path out = {}) {
-  if (out.empty()) out = test::temp_dir("scene_" + name);
-  const std::string file = test::scene_path(name + ".json").string();
+// Runs a scene file for `steps` steps and checks the contact invariants on every row and every
+// OBJ frame, writing into `out`. Returns the rows.
+std::vector<StatsRow> run_file_and_check(const std::string& file, int steps, fs::path out) {
   const test::CommandResult r = test::run_cli("run " + file + " --quiet --steps " + std::to_string(steps) +
                                               " --out " + out.string());
   INFO(r.output);
@@ -89,6 +89,12 @@ std::vector<StatsRow> run_and_check(const std::string& name, int steps, fs::path
   }
   CHECK(frames >= 2);
   return rows;
+}
+
+// The same for a shipped scene, by name.
+std::vector<StatsRow> run_and_check(const std::string& name, int steps, fs::path out = {}) {
+  if (out.empty()) out = test::temp_dir("scene_" + name);
+  return run_file_and_check(test::scene_path(name + ".json").string(), steps, out);
 }
 
 }  // namespace
@@ -183,16 +189,40 @@ struct Slope {
   }
 };
 
-Slope run_slope(const std::string& name) {
+Slope run_slope_file(const std::string& file, const std::string& tag) {
   Slope s;
-  s.out = test::temp_dir(name);
-  s.rows = run_and_check(name, 100, s.out);
-  s.model = load_scene(test::scene_path(name + ".json")).model;
+  s.out = test::temp_dir(tag);
+  s.rows = run_file_and_check(file, 100, s.out);
+  s.model = load_scene(file).model;
   REQUIRE(s.model.obstacle_planes.size() == 1);
   const Eigen::Vector3d n = s.model.obstacle_planes[0].normal;
   s.down = (Eigen::Vector3d(0, -1, 0) - n * n.dot(Eigen::Vector3d(0, -1, 0))).normalized();
   CHECK(n.y() / std::hypot(n.x(), n.y()) == doctest::Approx(2 / std::sqrt(5.0)));  // tan(theta) = 0.5
   return s;
+}
+
+Slope run_slope(const std::string& name) { return run_slope_file(test::scene_path(name + ".json").string(), name); }
+
+using Edits = std::initializer_list<std::pair<std::string, std::string>>;
+
+// The text of a shipped scene with each `from` replaced (its first occurrence) by its `to`.
+std::string edited_scene(const std::string& name, Edits edits) {
+  std::ifstream in(test::scene_path(name + ".json"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [from, to] : edits) {
+    const size_t at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+// scenes/slope_stick.json edited, written to a temporary folder (the mesh path made absolute).
+std::string slope_variant(const std::string& tag, Edits edits) {
+  std::string text = edited_scene("slope_stick", edits);
+  const std::string mesh = "meshes/cube.msh";
+  text.replace(text.find(mesh), mesh.size(), test::scene_path(mesh).string());
+  return test::write_text(test::temp_dir(tag) / (tag + ".json"), text).string();
 }
 
 constexpr double kG = 9.81;
@@ -227,4 +257,40 @@ TEST_CASE("scene block_slide: a block at v0 = 1 m/s stops after v0^2 / (2 mu g)"
   const Eigen::Vector3d moved = mean_position(out / "frames" / "frame_000060.obj") -
                                 mean_position(out / "frames" / "frame_000000.obj");
   CHECK(moved.x() == doctest::Approx(1.0 / (2 * 0.5 * kG)).epsilon(0.05));
+}
+
+TEST_CASE("slope with static friction 0.6 and kinetic 0.4: held at rest, sliding once moving") {
+  // tan(theta) = 0.5 lies between the two coefficients. At rest the cube sticks, creeping at the
+  // speed where mu_s N f1(v / epsv) carries the weight along the slope.
+  const std::string mu = R"("friction": 0.4, "static_friction": 0.6)";
+  // (Newton tolerance 1e-6 m/s: the shipped 1e-4 is 8% of this creep speed.)
+  const Slope rest = run_slope_file(
+      slope_variant("slope_static", {{"\"friction\": 0.51", mu}, {"\"tolerance\": 0.0001", "\"tolerance\": 1e-6"}}),
+      "slope_static");
+  const double epsv = 1e-3 * bodies_bbox_diagonal(rest.model);
+  CHECK(rest.velocity(99) == doctest::Approx(epsv * (1.0 - std::sqrt(1.0 - 0.5 / 0.6))).epsilon(0.01));
+  // Thrown down the slope at 0.5 m/s it slides with the kinetic coefficient and speeds up.
+  const Slope thrown = run_slope_file(
+      slope_variant("slope_kinetic", {{"\"friction\": 0.51", mu},
+                                      {"\"material\": \"stiff\"", R"("material": "stiff", "velocity": [0.4472135955, -0.2236067977, 0])"}}),
+      "slope_kinetic");
+  const double a = (thrown.velocity(99) - thrown.velocity(19)) / 2.0;
+  CHECK(thrown.velocity(0) > 0.45);
+  CHECK(a == doctest::Approx(kG * (std::sin(kTheta) - 0.4 * std::cos(kTheta))).epsilon(0.05));
+}
+
+TEST_CASE("friction_pairs: a block on a plane of material ice slides with the pair's coefficient") {
+  // block_slide's default friction 0.5 applies to every pair but (m, ice): 0.1 there, so the
+  // block thrown at 1 m/s stops after 1 / (2 0.1 g) = 0.51 m instead of 0.10 m.
+  const std::string text = edited_scene("block_slide", {
+      {R"("friction": 0.5)", R"("friction": 0.5, "friction_pairs": [ { "materials": ["ice", "m"], "friction": 0.1 } ])"},
+      {R"("materials": {)", R"("materials": { "ice": { "model": "linear", "youngs": 1e9, "poisson": 0.3, "density": 900 },)"},
+      {R"("plane": {)", R"("material": "ice", "plane": {)"}});
+  const fs::path out = test::temp_dir("block_on_ice");
+  const std::string file = test::write_text(out / "block_on_ice.json", text).string();
+  const std::vector<StatsRow> rows = run_file_and_check(file, 240, out / "run");  // 1.2 s, stops at 1.02 s
+  CHECK(std::abs(rows.back()[kPx]) < 1e-2 * std::abs(rows.front()[kPx]));
+  const Eigen::Vector3d moved = mean_position(out / "run" / "frames" / "frame_000240.obj") -
+                                mean_position(out / "run" / "frames" / "frame_000000.obj");
+  CHECK(moved.x() == doctest::Approx(1.0 / (2 * 0.1 * kG)).epsilon(0.05));
 }

@@ -58,7 +58,7 @@ TEST_CASE("friction potential: gradient and Hessian match finite differences ove
 
   // eps_u = epsv dt = 1e-3, and displacements of a few 1e-3: some contacts stick (y < eps_u),
   // others slide.
-  FrictionPotential friction(model, 0.4, 0.1);
+  FrictionPotential friction(model, FrictionTable(1, {0.4, 0.4}), 0.1);
   friction.lag(contact, x_lag.data(), 1e3, x_lag.data(), 0.01);
   REQUIRE(friction.num_stencils() == contact.num_stencils());
   CHECK(friction.total_normal_force() > 0.0);

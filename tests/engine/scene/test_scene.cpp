@@ -371,6 +371,21 @@ TEST_CASE("obstacle and contact errors name the key or the file") {
       {scene_with(R"("contact": { "friction": 0.3, "friction_iterations": "forever" })"), {},
        {"contact.friction_iterations", "converged", "forever"}},
       {scene_with(R"("contact": { "friction": 0.3, "epsv": -1e-3 })"), {}, {"contact.epsv", "-0.001"}},
+      {scene_with(R"("contact": { "friction": 0.5, "static_friction": 0.3 })"), {},
+       {"contact.static_friction", "at least the kinetic", "0.5", "0.3"}},
+      {scene_with(R"("contact": { "friction_pairs": [ { "materials": ["m", "steel"], "friction": 0.2 } ] })"), {},
+       {"contact.friction_pairs[0].materials[1]", "steel"}},
+      {scene_with(R"("contact": { "friction_pairs": [ { "materials": ["m"], "friction": 0.2 } ] })"), {},
+       {"contact.friction_pairs[0].materials", "two material names"}},
+      {scene_with(R"("contact": { "friction_pairs": [ { "materials": ["m", "m"] } ] })"), {},
+       {"contact.friction_pairs[0]", "\"friction\""}},
+      {scene_with(R"("contact": { "friction_pairs": [ { "materials": ["m", "m"], "friction": 0.2 },
+                                                      { "materials": ["m", "m"], "friction": 0.3 } ] })"), {},
+       {"contact.friction_pairs[1].materials", "already given"}},
+      {scene_with(R"("contact": { "friction_pairs": [ { "materials": ["m", "m"], "friction": 0.4, "static_friction": 0.1 } ] })"), {},
+       {"contact.friction_pairs[0].static_friction", "at least the kinetic"}},
+      {scene_with(R"("contact": { "friction": 0.2 }, "obstacles": [ { "plane": { "point": [0, -1, 0], "normal": [0, 1, 0] }, "material": "ice" } ])"), {},
+       {"obstacles[0].material", "ice"}},
       {scene_with(R"("contact": { "friction": -1 })"), {}, {"contact.friction", "-1"}},
       {scene_with(R"("joints": [ { "type": "pin", "body": 3, "point": [0, 0, 0] } ])"), {}, {"joints[0].body", "no such body", "3"}},
       {scene_with(R"("joints": { "type": "pin" })"), {}, {"joints", "expected an array"}},
@@ -389,6 +404,8 @@ TEST_CASE("obstacle and contact errors name the key or the file") {
   CHECK(error_of(scene_with(R"("contact": { "friction": 0 })")).empty());
   CHECK(error_of(scene_with(R"("contact": { "friction": 0.3, "friction_iterations": 2 })")).empty());
   CHECK(error_of(scene_with(R"("contact": { "friction": 0.3, "friction_iterations": "converged" })")).empty());
+  CHECK(error_of(scene_with(R"("contact": { "friction": 0.3, "static_friction": 0.3,
+    "friction_pairs": [ { "materials": ["m", "m"], "friction": 0.1, "static_friction": 0.2 } ] })")).empty());
 }
 
 TEST_CASE("obj frames leave obstacle triangles out and vtu frames keep obstacle points") {
