@@ -58,8 +58,9 @@ double IncrementalPotential::energy(const double* x) const {
   }
   const double joints = joints_ ? joints_->energy(x) : 0.0;
   const double friction = friction_ ? friction_->energy(x) : 0.0;
+  const double kinematic = kinematic_ ? kinematic_->energy(x) : 0.0;
   return inertia_gravity_energy(x) + scale_ * (elastic + joints) +
-         contact_scale_ * (kappa_ * barrier + friction);
+         contact_scale_ * (kappa_ * barrier + friction) + kinematic;
 }
 
 void IncrementalPotential::begin_solve(const double* x) {
@@ -158,6 +159,10 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
         values[pattern.diagonal[i]] += inertia * m[v];
       }
   }, 1024);
+  if (kinematic_) {
+    kinematic_->add_gradient(x, grad);
+    kinematic_->add_hessian_diagonal(pattern, values);
+  }
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
     contact_->add_gradient(grad);

@@ -1,11 +1,13 @@
 // The incremental potential of one time step (DESIGN.md sections 4 and 5):
 //   E(x) = w/2 (x - x_tilde)^T M (x - x_tilde)
 //          + s (Psi_elastic(x) + Phi_joints(x) - sum_i m_i g . (x_i - x_tilde_i))
-//          + s_c (kappa B(x) + D(x))
+//          + s_c (kappa B(x) + D(x)) + Phi_kinematic(x)
 // with w = 1 for dynamic schemes and 0 for "static", s the integrator's potential scale,
 // Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp), kappa B the IPC
 // barrier of contact (when the scene has contact) and D its lagged friction
-// (engine/contact/friction_potential.hpp), both weighted by s_c = s / gamma.
+// (engine/contact/friction_potential.hpp), both weighted by s_c = s / gamma, and Phi_kinematic
+// the augmented Lagrangian that moves the vertices of moving boundaries and obstacles in contact
+// scenes (engine/kinematic_targets.hpp).
 //
 // Why s / gamma: contact forces are impulsive. The trapezoidal rule (Newmark) would apply the
 // barrier force found at the end of a step half in this step and half again in the next, through
@@ -37,6 +39,7 @@
 #include "engine/contact/friction_potential.hpp"
 #include "engine/elastic_assembly.hpp"
 #include "engine/joints.hpp"
+#include "engine/kinematic_targets.hpp"
 #include "engine/model.hpp"
 #include "engine/solver/contact_pattern.hpp"
 #include "engine/step_profile.hpp"
@@ -54,6 +57,9 @@ class IncrementalPotential {
                        const JointSet* joints = nullptr);
   // Lagged friction over the contacts (null: frictionless), weighted like the barrier by s_c.
   void set_friction(FrictionPotential* friction) { friction_ = friction; }
+  // Kinematic vertices pulled to their targets (engine/kinematic_targets.hpp; null: none). Their
+  // augmented Lagrangian is added unscaled, next to the inertia it is measured against.
+  void set_kinematic(const KinematicTargets* kinematic) { kinematic_ = kinematic; }
 
   // Fixes x_tilde, the potential scale s and whether inertia is present for the coming solve.
   void begin_step(const std::vector<double>& x_tilde, double scale, double contact_scale, bool inertia) {
@@ -97,6 +103,7 @@ class IncrementalPotential {
   BarrierPotential* contact_ = nullptr;
   const JointSet* joints_ = nullptr;
   FrictionPotential* friction_ = nullptr;
+  const KinematicTargets* kinematic_ = nullptr;
   // Barrier and friction stencils as one list for the pattern (friction after the barrier).
   std::vector<int32_t> contact_stencils_;
   std::vector<int64_t> contact_slab_begin_;

@@ -57,11 +57,19 @@ struct MaterialBatch {
 // A prescribed rigid motion of a set of vertices (a "boundary" entry of the scene):
 //   p(t) = center + v t + R(axis, omega t) (p(0) - center)
 // "fix" is the motion with v = 0 and omega = 0.
+//
+// Kinematic motions (moving ones in a scene with contact) drive vertices that must push bodies
+// out of their way: those vertices stay unknowns of the step, pulled to their targets by an
+// augmented Lagrangian (engine/kinematic_targets.hpp) so that CCD sweeps their motion like any
+// other. Other held vertices are eliminated from the Newton system.
 struct DirichletMotion {
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // [m/s]
   Eigen::Vector3d center = Eigen::Vector3d::Zero();    // [m], a point on the rotation axis at t=0
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();     // unit vector
   double angular_velocity = 0.0;                       // [rad/s] about axis (right-hand rule)
+  bool kinematic = false;                              // see above
+
+  bool moves() const { return velocity != Eigen::Vector3d::Zero() || angular_velocity != 0.0; }
 };
 
 // A joint (DESIGN.md section 5, "joints"; issue 4). Its constraint is linear in the positions:
@@ -115,6 +123,8 @@ struct Model {
 
   int64_t num_dofs() const { return 3 * int64_t{num_vertices}; }
   bool has_dirichlet() const { return !dirichlet_motions.empty(); }
+  // Held out of the Newton system: on a Dirichlet motion that is not kinematic.
+  bool eliminated(int32_t v) const { return dirichlet[v] >= 0 && !dirichlet_motions[dirichlet[v]].kinematic; }
 };
 
 }  // namespace nexdyn

@@ -28,6 +28,10 @@ constexpr double kDefaultJointTolerance = 1e-9;
 constexpr int kMaxJointRounds = 30;
 constexpr double kJointStiffening = 4.0;
 constexpr double kMaxJointStiffening = 1e3;  // over the whole run: k stays conditioned
+// Kinematic vertices: stiffness against their inertia (they push whole bodies, so far stiffer
+// than a joint), and the most solves of a step that try to bring them onto their targets.
+constexpr double kKinematicStiffnessRatio = 1e6;
+constexpr int kMaxKinematicAttempts = 8;
 
 // Friction: the most lagging iterations of a step under "friction_iterations": "converged", and
 // the relative change of the summed normal force at which the lagging stops.
@@ -55,10 +59,14 @@ std::unique_ptr<FrictionPotential> make_friction(const Scene& scene) {
 Simulation::Simulation(const Scene& scene)
     : scene_(scene), model_(scene.model), state_(scene.initial), joints_(scene.model),
       elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
-      friction_(make_friction(scene)),
+      friction_(make_friction(scene)), kinematic_(scene.model),
       potential_(scene.model, elastic_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
   potential_.set_profile(&profile_);
   potential_.set_friction(friction_.get());
+  if (!kinematic_.empty()) {
+    kinematic_.set_stiffness(kKinematicStiffnessRatio, scene.time.integrator.potential_scale(scene.time.dt));
+    potential_.set_kinematic(&kinematic_);
+  }
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
@@ -85,12 +93,13 @@ Simulation::Simulation(const Scene& scene)
 }
 
 void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>* v,
-                           std::vector<double>* a) const {
+                           std::vector<double>* a, bool kinematic) const {
   if (!model_.has_dirichlet()) return;
   for (int32_t i = 0; i < model_.num_vertices; ++i) {
     const int32_t id = model_.dirichlet[i];
     if (id < 0) continue;
     const DirichletMotion& m = model_.dirichlet_motions[id];
+    if (m.kinematic && !kinematic) continue;
     const Eigen::Vector3d p0 = Eigen::Vector3d::Map(&model_.rest_positions[3 * i]);
     const Eigen::Vector3d w = m.angular_velocity * m.axis;
     const Eigen::Vector3d r = Eigen::AngleAxisd(m.angular_velocity * t, m.axis) * (p0 - m.center);
@@ -143,6 +152,14 @@ StepOutcome Simulation::step() {
     const double scale = integrator.potential_scale(dt);
     potential_.begin_step(state_.x_tilde, scale, integrator.is_static ? scale : scale / integrator.gamma,
                           !integrator.is_static);
+    if (!kinematic_.empty()) {
+      std::vector<double>& target = a_next_;
+      target = state_.x;
+      prescribe(t_next, target, nullptr, nullptr);
+      kinematic_.set_targets(target);
+      if (kinematic_on_target_) newton_->hold(kinematic_.vertices(), false);
+      kinematic_on_target_ = false;
+    }
     outcome = start_point(t_next);
     if (outcome.status != StepStatus::ok) return outcome;
     // Friction is lagged at x_n, then (friction_iterations) at each solution, re-solving.
@@ -187,6 +204,38 @@ StepOutcome Simulation::step() {
 }
 
 NewtonResult Simulation::solve_step(int& iterations) {
+  if (kinematic_.empty() || kinematic_on_target_) return solve_with_joints(iterations);
+  // Kinematic vertices: solves with their augmented Lagrangian pull them toward their targets
+  // while CCD sweeps their motion; then they are moved onto the targets (as far as CCD allows:
+  // a blocked move means another, stiffer solve), held there, and the step is solved again so
+  // that the bodies settle against them exactly where they belong.
+  for (int attempt = 0;; ++attempt) {
+    const NewtonResult result = solve_with_joints(iterations);
+    if (result.status != StepStatus::ok) return result;
+    kinematic_.update_multipliers(x_next_.data());  // the holding force, carried to the next step
+    kinematic_.motion_to_targets(x_next_.data(), motion_.data());
+    const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+    const int64_t n = model_.num_dofs();
+    for (int64_t i = 0; i < n; ++i) x_next_[i] += alpha * motion_[i];
+    if (alpha == 1.0) break;
+    if (attempt + 1 == kMaxKinematicAttempts) {
+      NewtonResult failed = result;
+      failed.status = StepStatus::boundary_collision;
+      failed.message = "a moving boundary or obstacle cannot reach its prescribed position: something "
+                       "it pushes is held or wedged";
+      return failed;
+    }
+    if (kinematic_stiffening_ < kMaxJointStiffening) {
+      kinematic_.stiffen(kJointStiffening);
+      kinematic_stiffening_ *= kJointStiffening;
+    }
+  }
+  kinematic_on_target_ = true;
+  newton_->hold(kinematic_.vertices(), true);
+  return solve_with_joints(iterations);
+}
+
+NewtonResult Simulation::solve_with_joints(int& iterations) {
   const double dt = scene_.time.dt;
   const NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
   if (!joints_.empty() && !joint_stiffness_set_) {
@@ -262,9 +311,10 @@ void Simulation::constrain_initial_acceleration() {
 
 StepOutcome Simulation::start_point(double t_next) {
   const bool is_static = scene_.time.integrator.is_static;
-  // x_n with the held vertices at their targets: the fallback start.
+  // x_n with the held vertices at their targets: the fallback start. (Kinematic vertices, which
+  // exist only with contact, start at x_n: the solve carries them.)
   x_next_ = state_.x;
-  prescribe(t_next, x_next_, nullptr, nullptr);
+  prescribe(t_next, x_next_, nullptr, nullptr, false);
   const int64_t n = model_.num_dofs();
   if (!contact_) {
     // Start from the predictor when it is a valid state (fewer iterations), else from x_n.
@@ -275,25 +325,24 @@ StepOutcome Simulation::start_point(double t_next) {
     if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
     return {};
   }
-  // With contact, every point Newton visits must be intersection-free. The held vertices' own
-  // motion x_n -> targets is not the solver's to change: it must not run into contact.
-  if (model_.has_dirichlet()) {
-    for (int64_t i = 0; i < n; ++i) motion_[i] = x_next_[i] - state_.x[i];
-    if (contact_->max_step(state_.x.data(), motion_.data()) < 1.0)
-      return {StepStatus::boundary_collision, "the prescribed motion of the boundary vertices runs into "
-                                      "contact; this version cannot push bodies with it"};
-  }
+  // With contact, every point Newton visits must be intersection-free. The eliminated held
+  // vertices do not move here (a moving boundary is kinematic when the scene has contact), so
+  // x_n is such a point.
+  //
   // With static friction above kinetic, the step's potential is not convex in the slip: a stuck
   // and a sliding minimum can coexist, and the predictor (free flight) would start Newton in the
   // sliding one. From x_n (no slip) a contact that can stick stays stuck, and a body whose
   // momentum beats static friction has no stuck minimum and slides all the same.
   if (is_static || (friction_ && friction_->table().has_static_peak())) return {};
-  // Then as far toward the predictor as CCD allows (it stops short of any contact).
+  // Then as far toward the predictor (kinematic vertices: toward their targets) as CCD allows
+  // (it stops short of any contact).
+  kinematic_.motion_to_targets(x_next_.data(), motion_.data());
   for (int32_t v = 0; v < model_.num_vertices; ++v)
-    for (int d = 0; d < 3; ++d) {
-      const int64_t i = 3 * int64_t{v} + d;
-      motion_[i] = model_.dirichlet[v] >= 0 ? 0.0 : state_.x_tilde[i] - x_next_[i];
-    }
+    if (model_.dirichlet[v] < 0)
+      for (int d = 0; d < 3; ++d) {
+        const int64_t i = 3 * int64_t{v} + d;
+        motion_[i] = state_.x_tilde[i] - x_next_[i];
+      }
   const double alpha = contact_->max_step(x_next_.data(), motion_.data());
   std::vector<double>& trial = a_next_;
   trial.resize(n);

@@ -14,6 +14,7 @@
 
 #include "engine/elastic_assembly.hpp"
 #include "engine/incremental_potential.hpp"
+#include "engine/kinematic_targets.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/solver/newton.hpp"
 #include "engine/solver/step_status.hpp"
@@ -62,19 +63,27 @@ class Simulation {
   const StepStats& last_stats() const { return stats_; }
   // Energies and momentum of the current state (step, time, iterations, wall time untouched).
   void measure(StepStats& stats) const;
+  // Moving boundaries and obstacles of a contact scene (empty without).
+  const KinematicTargets& kinematic() const { return kinematic_; }
   // Wall time of all steps so far, by phase.
   const StepProfile& profile() const { return profile_; }
 
  private:
-  void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a) const;
+  // Held vertices at their prescribed positions (and velocities, accelerations) at time t;
+  // kinematic ones too unless `kinematic` is false.
+  void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a,
+                 bool kinematic = true) const;
   // a = M^-1 f(x) on free vertices; false if f is not finite.
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
 
   // Newton's starting point for the step to t_next (written into x_next_).
   StepOutcome start_point(double t_next);
-  // Newton solves of the step, repeated with updated joint multipliers until every joint holds
-  // to the tolerance; adds the Newton iterations to `iterations`.
+  // The Newton solves of the step: with kinematic vertices, first until they can be moved onto
+  // their targets, then with them held there; adds the Newton iterations to `iterations`.
   NewtonResult solve_step(int& iterations);
+  // Newton solves repeated with updated joint multipliers until every joint holds to the
+  // tolerance.
+  NewtonResult solve_with_joints(int& iterations);
   // Friction bases and normal forces at x (lagged; engine/contact/friction_potential.hpp).
   void lag_friction(const std::vector<double>& x);
   // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
@@ -89,11 +98,14 @@ class Simulation {
   ElasticAssembly elastic_;
   std::unique_ptr<BarrierPotential> contact_;  // null without contact
   std::unique_ptr<FrictionPotential> friction_;  // null without friction
+  KinematicTargets kinematic_;
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
   double joint_tolerance_ = 0.0;          // [m]
   bool joint_stiffness_set_ = false;
   double joint_stiffening_ = 1.0;          // product of the stiffenings so far
+  double kinematic_stiffening_ = 1.0;      // the same for the kinematic vertices
+  bool kinematic_on_target_ = false;       // this step's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
 };
 

@@ -431,7 +431,7 @@ void BarrierPotential::build_active_set(const double* x) {
       const int n = stencil_size(kind_[k]);
       for (int i = 0; i < 4; ++i) {
         const int32_t v = vertices_[4 * k + i];
-        stencils_[4 * k + i] = (i < n && model_.dirichlet[v] < 0) ? v : -1;
+        stencils_[4 * k + i] = (i < n && !model_.eliminated(v)) ? v : -1;
       }
       slab_begin_[k + 1] = 9 * n * n;
     }

@@ -24,7 +24,7 @@
 // computed in parallel, one slab per stencil, and the caller gathers them in stencil order, so
 // results do not depend on the number of threads. stencils() lists each stencil's vertex ids
 // padded to 4 (vertex-triangle: p, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; point-edge: p,
-// e0 < e1; point-point: a < b; vertex-plane: v); absent and Dirichlet-held vertices are -1, the
+// e0 < e1; point-point: a < b; vertex-plane: v); absent and eliminated held vertices are -1, the
 // latter because their rows and columns are eliminated from the Newton system anyway.
 #pragma once
 

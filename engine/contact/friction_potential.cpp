@@ -128,7 +128,7 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
       const int points = kinds[k] == StencilKind::vertex_plane ? 1 : n;
       for (int i = 0; i < points; ++i) {
         vertices_[4 * k + i] = v[i];
-        stencils_[4 * k + i] = model_.dirichlet[v[i]] < 0 ? v[i] : -1;
+        stencils_[4 * k + i] = model_.eliminated(v[i]) ? -1 : v[i];
       }
       slab_begin_[k + 1] = 9 * points * points;
     }

@@ -438,6 +438,24 @@ void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t sc
   model.bodies.push_back(range);
 }
 
+// The rigid motion keys of a "boundary" or moving obstacle entry: "velocity", "angular_velocity"
+// with "axis", and "center" (default `center`).
+DirichletMotion read_motion(const json& j, const Where& w, const Eigen::Vector3d& center) {
+  DirichletMotion motion;
+  if (j.contains("velocity")) motion.velocity = vec3(j["velocity"], w["velocity"]);
+  if (j.contains("angular_velocity")) {
+    motion.angular_velocity = number(j["angular_velocity"], w["angular_velocity"]);
+    if (!j.contains("axis")) w.fail("\"angular_velocity\" needs an \"axis\"");
+  }
+  if (j.contains("axis")) {
+    const Eigen::Vector3d axis = vec3(j["axis"], w["axis"]);
+    if (axis.norm() == 0.0) w["axis"].fail("the axis must not be zero", j["axis"]);
+    motion.axis = axis.normalized();
+  }
+  motion.center = j.contains("center") ? vec3(j["center"], w["center"]) : center;
+  return motion;
+}
+
 void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scene_bodies) {
   check_keys(j, w, {"body", "box_min", "box_max", "fix", "velocity", "angular_velocity", "axis", "center"});
   if (!j.contains("box_min") || !j.contains("box_max")) w.fail("needs \"box_min\" and \"box_max\"");
@@ -450,25 +468,13 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
     if (*only_entry >= num_scene_bodies)
       w["body"].fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", j["body"]);
   }
-  DirichletMotion motion;
   const bool fix = j.contains("fix");
   if (fix && !boolean(j["fix"], w["fix"])) w["fix"].fail("\"fix\" can only be true; leave it out for a moving boundary");
   if (fix && (j.contains("velocity") || j.contains("angular_velocity")))
     w.fail("\"fix\" cannot be combined with \"velocity\" or \"angular_velocity\"");
   if (!fix && !j.contains("velocity") && !j.contains("angular_velocity"))
     w.fail("give \"fix\": true, a \"velocity\" or an \"angular_velocity\"");
-  if (j.contains("velocity")) motion.velocity = vec3(j["velocity"], w["velocity"]);
-  if (j.contains("angular_velocity")) {
-    motion.angular_velocity = number(j["angular_velocity"], w["angular_velocity"]);
-    if (!j.contains("axis")) w.fail("\"angular_velocity\" needs an \"axis\"");
-  }
-  if (j.contains("axis")) {
-    const Eigen::Vector3d axis = vec3(j["axis"], w["axis"]);
-    if (axis.norm() == 0.0) w["axis"].fail("the axis must not be zero", j["axis"]);
-    motion.axis = axis.normalized();
-  }
-  if (j.contains("center")) motion.center = vec3(j["center"], w["center"]);
-  else motion.center = 0.5 * (lo + hi);
+  const DirichletMotion motion = read_motion(j, w, 0.5 * (lo + hi));
 
   const int32_t id = static_cast<int32_t>(model.dirichlet_motions.size());
   int64_t selected = 0;
@@ -768,10 +774,11 @@ const ObstacleMesh& read_obstacle_mesh(const json& j, const Where& w, const fs::
   return cache.entries.emplace(key, std::move(mesh)).first->second;
 }
 
-// Appends a static obstacle mesh as a body: no tets, mass 0, every vertex on the shared fixed
-// motion `fixed_motion`, zero initial velocity. Its triangles join the collision surface.
+// Appends an obstacle mesh as a body: no tets, mass 0, every vertex on the Dirichlet motion
+// `motion` (the shared fixed one, or the obstacle's own), zero initial velocity (the simulation
+// prescribes it). Its triangles join the collision surface.
 void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32_t scene_entry,
-                     int32_t material, int32_t fixed_motion, Model& model, State& state) {
+                     int32_t material, int32_t motion, Model& model, State& state) {
   BodyRange range;
   range.vertex_begin = model.num_vertices;
   range.vertex_count = static_cast<int32_t>(mesh.positions.size() / 3);
@@ -796,7 +803,7 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
     }
     model.mass.push_back(0.0);
     model.vertex_body.push_back(body_id);
-    model.dirichlet.push_back(fixed_motion);
+    model.dirichlet.push_back(motion);
   }
   for (int32_t i : mesh.triangles) model.surface_triangles.push_back(base + i);
   for (int32_t i : mesh.edges) model.surface_edges.push_back(base + i);
@@ -807,8 +814,8 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
   model.bodies.push_back(range);
 }
 
-// One entry of "obstacles": a plane or a static mesh. `fixed_motion` is the id of the shared
-// fixed Dirichlet motion, created on the first mesh (-1 until then).
+// One entry of "obstacles": a plane or a mesh, static or moving. `fixed_motion` is the id of the
+// shared fixed Dirichlet motion of static meshes, created on the first one (-1 until then).
 void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs::path& scene_dir,
                    const std::map<std::string, int32_t>& material_ids, ObstacleCache& cache,
                    int32_t& fixed_motion, Model& model, State& state) {
@@ -833,16 +840,25 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
     model.obstacle_planes.push_back(p);
     return;
   }
-  check_keys(j, w, {"mesh", "material", "translate", "rotate_deg", "scale"});
+  check_keys(j, w, {"mesh", "material", "translate", "rotate_deg", "scale", "velocity", "angular_velocity",
+                    "axis", "center"});
   const ObstacleMesh& mesh = read_obstacle_mesh(j, w, scene_dir, cache);
   const Transform transform = read_transform(j, w);
   if (int64_t{model.num_vertices} + static_cast<int64_t>(mesh.positions.size() / 3) > (int64_t{1} << 30))
     w.fail("the scene exceeds 2^30 vertices");
-  if (fixed_motion < 0) {
-    fixed_motion = static_cast<int32_t>(model.dirichlet_motions.size());
+  int32_t motion_id = fixed_motion;
+  if (j.contains("velocity") || j.contains("angular_velocity")) {
+    // A moving obstacle: its own motion, about the centre of its bounding box by default.
+    Eigen::AlignedBox3d box;
+    for (size_t v = 0; 3 * v < mesh.positions.size(); ++v)
+      box.extend(transform.linear * Eigen::Vector3d::Map(&mesh.positions[3 * v]) + transform.translate);
+    motion_id = static_cast<int32_t>(model.dirichlet_motions.size());
+    model.dirichlet_motions.push_back(read_motion(j, w, box.center()));
+  } else if (fixed_motion < 0) {
+    fixed_motion = motion_id = static_cast<int32_t>(model.dirichlet_motions.size());
     model.dirichlet_motions.push_back(DirichletMotion{});  // velocity 0, angular velocity 0
   }
-  append_obstacle(mesh, transform, scene_entry, material, fixed_motion, model, state);
+  append_obstacle(mesh, transform, scene_entry, material, motion_id, model, state);
 }
 
 }  // namespace
@@ -938,6 +954,10 @@ Scene load_scene(const fs::path& file) {
                     obstacle_cache, fixed_motion, scene.model, scene.initial);
   }
 
+  // With contact, moving boundaries and obstacles push bodies: their vertices become unknowns
+  // held by an augmented Lagrangian (Model::eliminated).
+  for (DirichletMotion& motion : scene.model.dirichlet_motions)
+    motion.kinematic = scene.contact.enabled && motion.moves();
   scene.initial.x = scene.model.rest_positions;
   scene.initial.a.assign(scene.initial.x.size(), 0.0);
   scene.initial.x_tilde = scene.initial.x;

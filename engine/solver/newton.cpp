@@ -26,7 +26,7 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
   for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.dirichlet[v] >= 0)
+    if (model.eliminated(v))
       for (int d = 0; d < 3; ++d) constrained_dof_[3 * v + d] = 1;
   grad_.resize(n);
   direction_.resize(n);
@@ -34,13 +34,24 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   analyze_pattern();
 }
 
-void NewtonSolver::analyze_pattern() {
+void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held) {
+  for (int32_t v : vertices)
+    for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = held;
+  collect_constrained_values();
+}
+
+void NewtonSolver::collect_constrained_values() {
   const CscPattern& pattern = potential_.pattern();
   constrained_values_.clear();
   for (int64_t c = 0; c < pattern.num_dofs; ++c)
     for (int64_t k = pattern.col_ptr[c]; k < pattern.col_ptr[c + 1]; ++k)
       if (constrained_dof_[c] || constrained_dof_[pattern.row_idx[k]])
         constrained_values_.push_back(k);
+}
+
+void NewtonSolver::analyze_pattern() {
+  const CscPattern& pattern = potential_.pattern();
+  collect_constrained_values();
   values_.resize(pattern.nnz());
   cholmod_.analyze(pattern.num_dofs, pattern.col_ptr.data(), pattern.row_idx.data());
   analyzed_version_ = potential_.pattern_version();

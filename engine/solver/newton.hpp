@@ -49,10 +49,16 @@ class NewtonSolver {
   // Times the linear solves and line searches into `profile` (may be null: no timing).
   void set_profile(StepProfile* profile) { profile_ = profile; }
 
+  // Holds these vertices where they are in the coming solves (held = true), or releases them
+  // again; for kinematic vertices once they are on their targets (engine/kinematic_targets.hpp).
+  void hold(const std::vector<int32_t>& vertices, bool held);
+
  private:
   void eliminate_dirichlet(double* grad, double* values) const;
   // (Re)does the symbolic analysis and the Dirichlet bookkeeping for the potential's pattern.
   void analyze_pattern();
+  // The value indices of constrained rows and columns, from constrained_dof_.
+  void collect_constrained_values();
 
   const Model& model_;
   IncrementalPotential& potential_;

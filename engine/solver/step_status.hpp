@@ -11,7 +11,7 @@ enum class StepStatus {
   line_search_failed,     // no step length decreased the energy
   factorization_failed,   // CHOLMOD refused the matrix (not positive definite)
   non_finite,             // NaN/inf in the energy or gradient, or an inverted start
-  boundary_collision,     // the prescribed motion of held vertices runs into contact
+  boundary_collision,     // a moving boundary or obstacle cannot reach its prescribed position
 };
 
 inline std::string_view step_status_name(StepStatus s) {
