@@ -217,13 +217,16 @@ std::string edited_scene(const std::string& name, Edits edits) {
   return text;
 }
 
-// scenes/slope_stick.json edited, written to a temporary folder (the mesh path made absolute).
-std::string slope_variant(const std::string& tag, Edits edits) {
-  std::string text = edited_scene("slope_stick", edits);
-  const std::string mesh = "meshes/cube.msh";
-  text.replace(text.find(mesh), mesh.size(), test::scene_path(mesh).string());
+// A shipped scene edited and written to a temporary folder, its mesh paths made absolute.
+std::string edited_scene_file(const std::string& name, const std::string& tag, Edits edits) {
+  std::string text = edited_scene(name, edits);
+  const std::string from = "\"meshes/", to = "\"" + test::scene_path("meshes").string() + "/";
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+    text.replace(at, from.size(), to);
   return test::write_text(test::temp_dir(tag) / (tag + ".json"), text).string();
 }
+
+std::string slope_variant(const std::string& tag, Edits edits) { return edited_scene_file("slope_stick", tag, edits); }
 
 constexpr double kG = 9.81;
 const double kTheta = std::atan(0.5);
@@ -293,4 +296,36 @@ TEST_CASE("friction_pairs: a block on a plane of material ice slides with the pa
   const Eigen::Vector3d moved = mean_position(out / "run" / "frames" / "frame_000240.obj") -
                                 mean_position(out / "run" / "frames" / "frame_000000.obj");
   CHECK(moved.x() == doctest::Approx(1.0 / (2 * 0.1 * kG)).epsilon(0.05));
+}
+
+TEST_CASE("scene block_push: a moving wall pushes a block along the floor, intersection-free") {
+  const std::vector<StatsRow> rows = run_and_check("block_push", 100);
+  CHECK(rows.back()[kPx] == doctest::Approx(0.5 * 1.0).epsilon(0.01));  // 1 kg at the wall's 0.5 m/s
+}
+
+namespace {
+
+// Mean x of the ball (the scene's first body, 1760 vertices) in an OBJ frame.
+double ball_x(const fs::path& frame) {
+  const std::vector<double> x = obj_positions(frame);
+  double sum = 0.0;
+  for (int v = 0; v < 1760; ++v) sum += x[3 * v];
+  return sum / 1760;
+}
+
+}  // namespace
+
+TEST_CASE("scene roller: the rotating roller grips the ball and draws it through the gap") {
+  // The gap under the roller is 8.5% narrower than the ball. Turning with the ball (bottom moving
+  // along +x) the roller pulls it through; turning against it, it throws the ball back.
+  const fs::path out = test::temp_dir("roller");
+  run_and_check("roller", 40, out);
+  CHECK(ball_x(out / "frames" / "frame_000000.obj") < -0.09);
+  CHECK(ball_x(out / "frames" / "frame_000040.obj") > 0.1);  // past the roller (radius 0.05 + 0.05)
+
+  const fs::path back = test::temp_dir("roller_back");
+  const std::vector<StatsRow> rows = run_file_and_check(
+      edited_scene_file("roller", "roller_back", {{"\"angular_velocity\": 20", "\"angular_velocity\": -20"}}), 30, back);
+  CHECK(rows.back()[kPx] < -0.05);  // moving back at more than 0.1 m/s (0.52 kg)
+  CHECK(ball_x(back / "frames" / "frame_000030.obj") < ball_x(back / "frames" / "frame_000020.obj"));
 }
