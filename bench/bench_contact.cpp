@@ -6,6 +6,8 @@
 //                   Newton matrix), with the candidate list found once outside the timed loop
 //   max step        BarrierPotential::max_step: swept broad phase + CCD of a shearing, sinking
 //                   cube stack; x + alpha p is checked intersection-free outside the timing
+//   friction        over the barrier's active set (issue 4): lagging, and gradient + Hessian
+//                   slabs, as contact stencils per second
 //
 // Scenes: k x k x k unit cubes, each meshed as n^3 hex cells of 6 tets (the scene's "box" body),
 // 0.005 apart on every side (spacing 1.005), dhat = 0.01, built by writing a scene JSON and
@@ -21,6 +23,7 @@
 // 1,000 cubes 449 ms (target 180); barrier gradient 30 ms (target 15), Hessian 2,600 ms (target
 // 400); max step on 27 cubes: ipc-toolkit did not finish in 300 s (target 50 ms).
 #include "engine/contact/barrier_potential.hpp"
+#include "engine/contact/friction_potential.hpp"
 #include "engine/contact/candidates.hpp"
 #include "engine/contact/intersection.hpp"
 #include "engine/elastic_assembly.hpp"
@@ -302,6 +305,52 @@ void BM_MaxStep_27cubes_3cells(benchmark::State& state) {
   if (!hits.empty()) state.SkipWithError("x + alpha p intersects");
 }
 
+// Friction over the same active set (issue 4): lagging (tangent bases, closest-point weights,
+// normal forces) and the per-iteration derivatives (gradient and PSD Hessian slabs), per contact
+// stencil. The lagged state is the rest state, and x slides every vertex by a different small
+// tangential amount, so both the sticking and the sliding branch of the smoothed friction occur.
+struct FrictionProblem {
+  BarrierProblem& b;
+  std::unique_ptr<FrictionPotential> friction;
+  std::vector<double> x;
+
+  FrictionProblem() : b(barrier_problem()) {
+    const Model& m = b.g.model();
+    friction = std::make_unique<FrictionPotential>(m, FrictionTable(int32_t(m.materials.size()), {0.5, 0.5}), 1.0);
+    friction->lag(*b.barrier, b.x.data(), 1e3, b.x.data(), 1e-3);  // eps_u = 1e-3 m
+    x = b.x;
+    for (size_t i = 0; i < x.size(); ++i) x[i] += 2e-3 * std::sin(0.37 * double(i));
+    friction->compute_derivatives(x.data(), 1.0, true);  // allocate the slabs outside the timing
+  }
+};
+
+FrictionProblem& friction_problem() {
+  static FrictionProblem p;
+  return p;
+}
+
+void BM_FrictionLag_125cubes_10cells(benchmark::State& state) {
+  FrictionProblem& p = friction_problem();
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
+  for (auto _ : state) p.friction->lag(*p.b.barrier, p.b.x.data(), 1e3, p.b.x.data(), 1e-3);
+  state.SetItemsProcessed(state.iterations() * p.friction->num_stencils());
+  state.counters["stencils"] = double(p.friction->num_stencils());
+}
+
+void BM_FrictionDerivatives_125cubes_10cells(benchmark::State& state) {
+  FrictionProblem& p = friction_problem();
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
+  std::vector<double>& grad = p.b.grad;
+  for (auto _ : state) {
+    std::fill(grad.begin(), grad.end(), 0.0);
+    p.friction->compute_derivatives(p.x.data(), 1.0, true);
+    p.friction->add_gradient(grad.data());
+    benchmark::DoNotOptimize(grad.data());
+  }
+  state.SetItemsProcessed(state.iterations() * p.friction->num_stencils());
+  state.counters["stencils"] = double(p.friction->num_stencils());
+}
+
 #define NEXDYN_CONTACT_BENCH(fn) \
   BENCHMARK(fn)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()
 
@@ -314,6 +363,8 @@ NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_derivatives);
 NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_pattern_update);
 NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_merge);
 NEXDYN_CONTACT_BENCH(BM_MaxStep_27cubes_3cells);
+NEXDYN_CONTACT_BENCH(BM_FrictionLag_125cubes_10cells);
+NEXDYN_CONTACT_BENCH(BM_FrictionDerivatives_125cubes_10cells);
 
 }  // namespace
 }  // namespace nexdyn
