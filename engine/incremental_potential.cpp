@@ -111,7 +111,10 @@ void IncrementalPotential::prepare(const double* x, bool first_iteration) {
     contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
     return;
   }
-  friction_->compute_derivatives(x, contact_scale_, true);
+  {
+    ProfileScope friction_scope(profile_, StepPhase::friction);
+    friction_->compute_derivatives(x, contact_scale_, true);
+  }
   // One stencil list for the pattern: the barrier's, then friction's (a copy per iteration; the
   // friction stencils are the barrier's of the lagged state, so the pattern rarely grows).
   contact_stencils_ = contact_->stencils();
@@ -166,7 +169,10 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
     contact_->add_gradient(grad);
-    if (friction_) friction_->add_gradient(grad);
+    if (friction_) {
+      ProfileScope friction_scope(profile_, StepPhase::friction);
+      friction_->add_gradient(grad);
+    }
   }
 }
 

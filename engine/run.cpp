@@ -91,10 +91,68 @@ std::string profile_line(const RunSummary& summary) {
   line += buf;
   char head[64];
   std::snprintf(head, sizeof head, "time per step: %.4g ms =", summary.step_seconds * per_step_ms);
-  std::snprintf(buf, sizeof buf, "; Newton iterations per step: %.3g",
-                double(summary.newton_iterations) / double(summary.steps_done));
+  std::snprintf(buf, sizeof buf, "; output %.3g ms per step; Newton iterations per step: %.3g",
+                summary.output_seconds * per_step_ms, double(summary.newton_iterations) / double(summary.steps_done));
   return head + line + buf;
 }
+
+std::string timings_header() {
+  std::string header = "step";
+  for (const char* column : kStepPhaseColumns) header += std::string(",") + column;
+  return header + ",other_ms,output_ms,total_ms";
+}
+
+namespace {
+
+// One timings.csv row: the phases' share of this step (the profile's growth since `before`).
+std::string timings_row(int64_t step, const StepProfile& before, const StepProfile& after, double step_seconds,
+                        double output_seconds) {
+  std::string row = std::to_string(step);
+  char buf[32];
+  double phases = 0.0;
+  for (size_t p = 0; p < kStepPhaseColumns.size(); ++p) {
+    const double seconds = after.seconds(StepPhase(p)) - before.seconds(StepPhase(p));
+    phases += seconds;
+    std::snprintf(buf, sizeof buf, ",%.6g", 1e3 * seconds);
+    row += buf;
+  }
+  std::snprintf(buf, sizeof buf, ",%.6g", 1e3 * std::max(0.0, step_seconds - phases));
+  row += buf;
+  std::snprintf(buf, sizeof buf, ",%.6g", 1e3 * output_seconds);
+  row += buf;
+  std::snprintf(buf, sizeof buf, ",%.6g", 1e3 * (step_seconds + output_seconds));
+  return row + buf;
+}
+
+// An output file written as NAME.partial.csv while the run goes, renamed to NAME.csv at the end.
+class RowFile {
+ public:
+  RowFile(const fs::path& out, const std::string& name, const std::string& header)
+      : partial_(out / (name + ".partial.csv")), final_(out / (name + ".csv")), file_(partial_, std::ios::trunc) {
+    std::error_code ec;
+    fs::remove(final_, ec);
+    if (!file_) throw std::runtime_error(partial_.string() + ": cannot open for writing");
+    write(header);
+  }
+  void write(const std::string& row) {
+    file_ << row << '\n';
+    if (!file_) throw std::runtime_error(partial_.string() + ": write failed (disk full?)");
+  }
+  // Closes the file; renames it into place when `complete`.
+  void finish(bool complete) {
+    file_.close();
+    if (!complete) return;
+    std::error_code ec;
+    fs::rename(partial_, final_, ec);
+    if (ec) throw std::runtime_error(final_.string() + ": cannot rename into place: " + ec.message());
+  }
+
+ private:
+  fs::path partial_, final_;
+  std::ofstream file_;
+};
+
+}  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   const auto start = std::chrono::steady_clock::now();
@@ -105,13 +163,10 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   fs::create_directories(frames_dir, ec);
   if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
   remove_old_frames(frames_dir);
-  fs::remove(out / "stats.csv", ec);
   fs::remove(out / "scene.pvd", ec);
 
-  const fs::path partial = out / "stats.partial.csv";
-  std::ofstream stats(partial, std::ios::trunc);
-  if (!stats) throw std::runtime_error(partial.string() + ": cannot open for writing");
-  stats << kStatsHeader << (scene.model.joints.empty() ? "" : ",joint_violation") << '\n';
+  RowFile stats(out, "stats", std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation"));
+  RowFile timings(out, "timings", timings_header());
 
   Simulation simulation(scene);
   std::vector<std::pair<double, std::string>> pvd_frames;
@@ -130,6 +185,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   RunSummary summary;
   ProgressBar progress(options.progress, total_steps);
   write_frame(0);
+  StepProfile before = simulation.profile();
   for (int64_t step = 1; step <= total_steps; ++step) {
     const StepOutcome outcome = simulation.step();
     if (outcome.status != StepStatus::ok) {
@@ -140,20 +196,22 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
       summary.message = buf + outcome.message;
       break;
     }
-    stats << stats_row(simulation.last_stats()) << '\n';
-    summary.step_seconds += simulation.last_stats().wall_seconds;
+    const double step_seconds = simulation.last_stats().wall_seconds;
+    summary.step_seconds += step_seconds;
     summary.newton_iterations += simulation.last_stats().newton_iterations;
-    if (!stats) throw std::runtime_error(partial.string() + ": write failed (disk full?)");
+    const auto output_start = std::chrono::steady_clock::now();
+    stats.write(stats_row(simulation.last_stats()));
     if (step % scene.output.every == 0) write_frame(step);
+    const double output_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - output_start).count();
+    summary.output_seconds += output_seconds;
+    timings.write(timings_row(step, before, simulation.profile(), step_seconds, output_seconds));
+    before = simulation.profile();
     summary.steps_done = step;
     progress.update(step, simulation.state().time, step == total_steps);
   }
   progress.finish();
-  stats.close();
-  if (summary.ok) {
-    fs::rename(partial, out / "stats.csv", ec);
-    if (ec) throw std::runtime_error((out / "stats.csv").string() + ": cannot rename into place: " + ec.message());
-  }
+  stats.finish(summary.ok);
+  timings.finish(summary.ok);
   summary.profile = simulation.profile();
   summary.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;

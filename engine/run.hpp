@@ -1,7 +1,9 @@
-// `nexdyn run`: steps a scene and writes stats.csv, frames and scene.pvd into the output folder.
+// `nexdyn run`: steps a scene and writes stats.csv, timings.csv, frames and scene.pvd into the
+// output folder.
 //
-// Honest outputs: stats.csv only exists once the run has finished every step; while running (or
-// after a failure) the rows so far are in stats.partial.csv. Frames and scene.pvd are renamed into
+// Honest outputs: stats.csv and timings.csv only exist once the run has finished every step;
+// while running (or after a failure) the rows so far are in stats.partial.csv and
+// timings.partial.csv. Frames and scene.pvd are renamed into
 // place whole, so every file that exists is complete.
 #pragma once
 
@@ -20,6 +22,10 @@ inline constexpr const char* kStatsHeader =
     "step,time,kinetic_energy,elastic_energy,gravity_energy,barrier_energy,total_energy,"
     "momentum_x,momentum_y,momentum_z,newton_iterations,contacts,min_distance,wall_seconds";
 
+// timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
+// the rest of the step, of writing its stats row and frames, and the total, in milliseconds.
+std::string timings_header();
+
 struct RunOptions {
   std::filesystem::path out_dir;  // created if missing
   int64_t steps = -1;             // -1: the scene's time.steps
@@ -35,11 +41,12 @@ struct RunSummary {
   // Newton iterations of all steps.
   double step_seconds = 0.0;
   StepProfile profile;
+  double output_seconds = 0.0;  // stats rows and frames (not part of step_seconds)
   int64_t newton_iterations = 0;
 };
 
-// "time per step: 12.3 ms = broad phase 1.2 + CCD 0.3 + ... + other 0.1; Newton iterations per
-// step: 4.5", or "" when no step was done.
+// "time per step: 12.3 ms = broad phase 1.2 + CCD 0.3 + ... + other 0.1; output 0.4 ms per step;
+// Newton iterations per step: 4.5", or "" when no step was done.
 std::string profile_line(const RunSummary& summary);
 
 std::string stats_row(const StepStats& s);

@@ -274,6 +274,7 @@ void Simulation::lag_friction(const std::vector<double>& x) {
   ProfileScope scope(&profile_, StepPhase::barrier);
   contact_->find_candidates(x.data(), nullptr);
   contact_->build_active_set(x.data());
+  ProfileScope friction_scope(&profile_, StepPhase::friction);
   friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), scene_.time.dt);
 }
 

@@ -19,6 +19,7 @@ enum class StepPhase : uint8_t {
   broad_phase,    // contact candidate searches of the solver
   ccd,            // narrow-phase CCD of the line search's step bound
   barrier,        // contact active set, derivatives and their merge into the Newton matrix
+  friction,       // friction lagging (bases, normal forces) and derivatives
   elastic,        // elastic gradient and Hessian
   analysis,       // CHOLMOD symbolic analysis (ordering), when the matrix pattern changed
   factorization,  // CHOLMOD numeric factorisation
@@ -28,9 +29,13 @@ enum class StepPhase : uint8_t {
   count
 };
 
+// Names for the summary line, and the timings.csv columns (milliseconds).
 inline constexpr std::array<const char*, static_cast<size_t>(StepPhase::count)> kStepPhaseNames = {
-    "broad phase", "CCD",   "barrier",     "elastic", "analysis",
+    "broad phase", "CCD", "barrier", "friction", "elastic", "analysis",
     "factorisation", "solve", "line search", "measure"};
+inline constexpr std::array<const char*, static_cast<size_t>(StepPhase::count)> kStepPhaseColumns = {
+    "broad_phase_ms", "ccd_ms", "barrier_ms", "friction_ms", "elastic_ms", "analysis_ms",
+    "factorisation_ms", "solve_ms", "line_search_ms", "measure_ms"};
 
 class StepProfile {
  public:

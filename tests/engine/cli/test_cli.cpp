@@ -8,6 +8,7 @@
 #include <doctest/doctest.h>
 
 #include <filesystem>
+#include <sstream>
 
 using namespace nexdyn;
 namespace fs = std::filesystem;
@@ -88,4 +89,41 @@ TEST_CASE("a Newton failure is reported with its step and reason and stats.csv i
   CHECK(r.output.find("max_iterations") != std::string::npos);
   CHECK_FALSE(fs::exists(dir / "out" / "stats.csv"));
   CHECK(fs::exists(dir / "out" / "stats.partial.csv"));
+  CHECK_FALSE(fs::exists(dir / "out" / "timings.csv"));
+  CHECK(fs::exists(dir / "out" / "timings.partial.csv"));
+}
+
+// timings.csv: a row per step whose phases, rest and output add up to its total, which is the
+// step's wall time in stats.csv plus the output; friction shows in a friction scene.
+TEST_CASE("nexdyn run writes timings.csv, a row per step split by phase") {
+  const fs::path out = test::temp_dir("cli_timings");
+  const auto r = test::run_cli("run " + test::scene_path("block_slide.json").string() + " --steps 20 --out " + out.string());
+  REQUIRE(r.exit_code == 0);
+  CHECK(r.output.find("friction ") != std::string::npos);
+  CHECK(r.output.find("ms per step; Newton iterations per step") != std::string::npos);
+  const auto timings = test::read_lines(out / "timings.csv");
+  const auto stats = test::read_lines(out / "stats.csv");
+  REQUIRE(timings.size() == 21);
+  CHECK(timings[0] == timings_header());
+  CHECK(timings[0].rfind("step,broad_phase_ms,ccd_ms,barrier_ms,friction_ms,", 0) == 0);
+  CHECK_FALSE(fs::exists(out / "timings.partial.csv"));
+  double friction = 0.0;
+  for (size_t i = 1; i < timings.size(); ++i) {
+    std::vector<double> v;
+    std::stringstream ss(timings[i]);
+    for (std::string cell; std::getline(ss, cell, ',');) v.push_back(std::stod(cell));
+    REQUIRE(v.size() == 14);
+    CHECK(v[0] == double(i));
+    double parts = 0.0;
+    for (size_t c = 1; c + 1 < v.size(); ++c) {
+      CHECK(v[c] >= 0.0);
+      parts += v[c];
+    }
+    CHECK(parts == doctest::Approx(v.back()).epsilon(1e-4));
+    friction += v[4];
+    // total = wall_seconds (last stats column) + output, in ms
+    const double wall = std::stod(stats[i].substr(stats[i].rfind(',') + 1));
+    CHECK(v.back() == doctest::Approx(1e3 * wall + v[12]).epsilon(1e-4));
+  }
+  CHECK(friction > 0.0);
 }
