@@ -329,3 +329,15 @@ TEST_CASE("scene roller: the rotating roller grips the ball and draws it through
   CHECK(rows.back()[kPx] < -0.05);  // moving back at more than 0.1 m/s (0.52 kg)
   CHECK(ball_x(back / "frames" / "frame_000030.obj") < ball_x(back / "frames" / "frame_000020.obj"));
 }
+
+TEST_CASE("scene stress/pile_10: mixed shapes fall into a box of planes, intersection-free") {
+  const std::vector<StatsRow> rows = run_and_check("stress/pile_10", 40);
+  CHECK(rows.back()[kContacts] > 0);
+}
+
+TEST_CASE("scene mat40x40_twist: the IPC mat twisted from both ends, intersection-free while it buckles") {
+  // The first 1.8 s (45 steps): the ends turn by 0.72 pi each, and from step 34 the mat folds
+  // onto itself; the whole 10 s is a benchmark (docs/performance.md).
+  const std::vector<StatsRow> rows = run_and_check("mat40x40_twist", 45);
+  CHECK(rows.back()[kContacts] > 50);
+}

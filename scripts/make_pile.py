@@ -1,0 +1,110 @@
+#!/usr/bin/env python3
+"""Writes a stress scene: N bodies of mixed shapes falling into a box made of five planes.
+
+Shapes, in turn: a `box` body (0.1 m, 2 x 2 x 2 cells, 48 tets), the IPC torus (0.12 m, 491
+tets), the IPC cube (0.08 m, 6 tets) and the IPC pyramid (0.06 x 0.12 x 0.06 m, 3 tets), about
+137 tets per body on average. They start on a square grid of columns, layer above layer,
+0.16 m apart, each turned by a pseudo-random rotation (the same on every run for the same N), and
+fall under gravity into a container whose floor is at y = 0 and whose walls leave 0.1 m around
+the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with friction 0.3.
+
+    python3 scripts/make_pile.py 1000                       # scenes/stress/pile_1000.json
+    python3 scripts/make_pile.py 10000 --steps 20 --out /tmp/pile_10000.json
+
+Mesh paths are written relative to the output file, so keep it in scenes/stress/ or pass --out
+inside scenes/; the meshes are scenes/meshes/torus.msh, cube.msh and pyramid.msh.
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+
+SPACING = 0.16  # [m] between body centres, every direction
+
+SHAPES = [
+    {"box": {"size": [0.1, 0.1, 0.1], "cells": [2, 2, 2]}},
+    {"mesh": "torus.msh", "scale": 0.12},
+    {"mesh": "cube.msh", "scale": 0.08, "centre": [0.5, 0.5, 0.5]},
+    {"mesh": "pyramid.msh", "scale": 0.06, "centre": [0.5, 1.0, 0.5]},
+]
+
+
+def rotation(i):
+    """Three angles in degrees from a small linear congruential generator seeded by i."""
+    state = (i * 2654435761 + 12345) % 2**32
+    angles = []
+    for _ in range(3):
+        state = (1664525 * state + 1013904223) % 2**32
+        angles.append(round(360.0 * state / 2**32, 3))
+    return angles
+
+
+def pile(count, steps, mesh_dir):
+    columns = max(2, math.ceil(1.3 * count ** (1.0 / 3.0)))
+    half = 0.5 * columns * SPACING + 0.1
+    bodies = []
+    for i in range(count):
+        layer, cell = divmod(i, columns * columns)
+        row, col = divmod(cell, columns)
+        centre = [(col + 0.5) * SPACING - 0.5 * columns * SPACING, 0.1 + layer * SPACING,
+                  (row + 0.5) * SPACING - 0.5 * columns * SPACING]
+        shape = dict(SHAPES[i % len(SHAPES)])
+        body = {}
+        if "box" in shape:
+            body["box"] = shape["box"]
+            translate = centre
+        else:
+            # A mesh turns about its own origin: to turn it about its centre instead, the
+            # translation takes the rotated offset from the centre to the origin.
+            body["mesh"] = mesh_dir + shape["mesh"]
+            body["scale"] = shape["scale"]
+            offset = [-c * shape["scale"] for c in shape.get("centre", [0.0, 0.0, 0.0])]
+            translate = [c + o for c, o in zip(centre, rotate(offset, rotation(i)))]
+        body["material"] = "rubber"
+        body["rotate_deg"] = rotation(i)
+        body["translate"] = [round(t, 9) for t in translate]
+        bodies.append(body)
+    walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
+             ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
+    return {
+        "name": f"pile_{count}",
+        "gravity": [0, -9.81, 0],
+        "time": {"dt": 0.01, "steps": steps, "integrator": "implicit_euler"},
+        "solver": {"tolerance": 1e-3, "max_iterations": 200},
+        "contact": {"dhat": 1e-3, "friction": 0.3},
+        "materials": {"rubber": {"model": "neohookean", "youngs": 1e6, "poisson": 0.4, "density": 1000}},
+        "bodies": bodies,
+        "obstacles": [{"plane": {"point": p, "normal": n}} for p, n in walls],
+        "output": {"every": 10, "formats": ["vtu", "obj"]},
+    }
+
+
+def rotate(v, degrees):
+    """v rotated about x, then y, then z (the scene's rotate_deg convention)."""
+    x, y, z = v
+    ax, ay, az = (math.radians(d) for d in degrees)
+    y, z = y * math.cos(ax) - z * math.sin(ax), y * math.sin(ax) + z * math.cos(ax)
+    x, z = x * math.cos(ay) + z * math.sin(ay), -x * math.sin(ay) + z * math.cos(ay)
+    x, y = x * math.cos(az) - y * math.sin(az), x * math.sin(az) + y * math.cos(az)
+    return [x, y, z]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("count", type=int, help="number of bodies (1 to 100000)")
+    parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument("--out", help="default: scenes/stress/pile_COUNT.json")
+    args = parser.parse_args()
+    if not 1 <= args.count <= 100000:
+        raise SystemExit(f"count: expected 1 to 100000, got {args.count}")
+    root = pathlib.Path(__file__).resolve().parent.parent
+    out = pathlib.Path(args.out) if args.out else root / "scenes" / "stress" / f"pile_{args.count}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    mesh_dir = os.path.relpath(root / "scenes" / "meshes", out.parent.resolve()) + "/"
+    out.write_text(json.dumps(pile(args.count, args.steps, mesh_dir), indent=1) + "\n")
+    print(f"{out}: {args.count} bodies")
+
+
+if __name__ == "__main__":
+    main()
