@@ -666,15 +666,18 @@ void BarrierPotential::compute_derivatives(const double* x, double weight, bool 
   }, 256);
 }
 
-void BarrierPotential::add_gradient(double* grad) const {
-  const int64_t ns = num_stencils();
-  for (int64_t k = 0; k < ns; ++k)
+void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vector<double>& gradients,
+                           double* grad) {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
+  for (int64_t k = 0; k < num; ++k)
     for (int i = 0; i < 4; ++i) {
-      const int32_t v = stencils_[4 * k + i];
+      const int32_t v = stencils[4 * k + i];
       if (v < 0) continue;
-      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients_[12 * k + 3 * i + r];
+      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients[12 * k + 3 * i + r];
     }
 }
+
+void BarrierPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils_, gradients_, grad); }
 
 // ---- CCD --------------------------------------------------------------------------------------
 

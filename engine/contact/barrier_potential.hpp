@@ -41,6 +41,12 @@ namespace nexdyn {
 // length scale of dhat's default (1e-3 of it) and of the barrier stiffness heuristics.
 double bodies_bbox_diagonal(const Model& model);
 
+// grad += the per-stencil gradients (num x 12, padded to 4 vertices) at their stencils' vertices
+// (num x 4; -1 = absent or eliminated, skipped), in stencil order: serial, so the sums do not
+// depend on the number of threads. Shared by the barrier and friction potentials.
+void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vector<double>& gradients,
+                           double* grad);
+
 class BarrierPotential {
  public:
   // Closest feature of a stencil; decides its size and derivative kernel.

@@ -177,14 +177,6 @@ void FrictionPotential::compute_derivatives(const double* x, double weight, bool
   }, 256);
 }
 
-void FrictionPotential::add_gradient(double* grad) const {
-  const int64_t num = num_stencils();
-  for (int64_t k = 0; k < num; ++k)
-    for (int i = 0; i < 4; ++i) {
-      const int32_t v = stencils_[4 * k + i];
-      if (v < 0) continue;
-      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients_[12 * k + 3 * i + r];
-    }
-}
+void FrictionPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils_, gradients_, grad); }
 
 }  // namespace nexdyn
