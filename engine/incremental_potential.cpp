@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -61,6 +62,50 @@ double IncrementalPotential::energy(const double* x) const {
   const double kinematic = kinematic_ ? kinematic_->energy(x) : 0.0;
   return inertia_gravity_energy(x) + scale_ * (elastic + joints) +
          contact_scale_ * (kappa_ * barrier + friction) + kinematic;
+}
+
+void IncrementalPotential::group_energy(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
+                                        double* out) {
+  // Inertia, gravity and the kinematic targets (unscaled) go straight into out.
+  std::fill(out, out + num_groups, 0.0);
+  const double* xt = x_tilde_->data();
+  const double* m = model_.mass.data();
+  const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
+  grouped_sum(model_.num_vertices, 1024, [&](int64_t v) { return group_of_vertex[v]; },
+              [&](int64_t begin, int64_t end) {
+    double sum = 0.0;
+    for (int64_t v = begin; v < end; ++v) {
+      double kinetic = 0.0, work = 0.0;
+      for (int d = 0; d < 3; ++d) {
+        const double dx = x[3 * v + d] - xt[3 * v + d];
+        kinetic += dx * dx;
+        work += g[d] * dx;
+      }
+      sum += m[v] * (0.5 * inertia_ * kinetic - scale_ * work);
+    }
+    return sum;
+  }, out);
+  if (kinematic_) kinematic_->group_energy(x, group_of_vertex, out);
+  auto zeroed = [&](std::vector<double>& w) -> double* {
+    w.assign(num_groups, 0.0);
+    return w.data();
+  };
+  double* elastic = zeroed(group_elastic_);
+  double* joints = zeroed(group_joints_);
+  double* barrier = zeroed(group_barrier_);
+  double* friction = zeroed(group_friction_);
+  elastic_.group_energy(x, group_of_vertex, elastic);
+  if (joints_) joints_->group_energy(x, group_of_vertex, joints);
+  if (contact_) contact_->group_energy(x, group_of_vertex, barrier);
+  if (friction_) friction_->group_energy(x, group_of_vertex, friction);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (int32_t k = 0; k < num_groups; ++k) {
+    if (!std::isfinite(elastic[k]) || !std::isfinite(barrier[k])) {
+      out[k] = kInf;  // an inverted tet or a touching pair (kappa may still be 0: no inf * 0)
+      continue;
+    }
+    out[k] += scale_ * (elastic[k] + joints[k]) + contact_scale_ * (kappa_ * barrier[k] + friction[k]);
+  }
 }
 
 void IncrementalPotential::begin_solve(const double* x) {
@@ -126,21 +171,25 @@ void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   contact_pattern_->update(contact_stencils_, contact_slab_begin_, first_iteration);
 }
 
-void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values) {
+void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values,
+                                            const ActiveSubset* subset) {
   const bool merge = contact_ != nullptr;
   const CscPattern& pattern = this->pattern();
   double* elastic_values = merge ? elastic_values_.data() : values;
   ProfileScope elastic_scope(profile_, StepPhase::elastic);
-  elastic_.gradient_hessian(x, grad, elastic_values);  // joints' Hessian included (coupling slabs)
+  // joints' Hessian included (coupling slabs)
+  elastic_.gradient_hessian(x, grad, elastic_values, subset);
   if (joints_) joints_->add_gradient(x, grad);
+  const IndexRanges all_vertices{{0, model_.num_vertices}};
+  const IndexRanges& vertices = subset ? subset->vertices : all_vertices;
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
   const double inertia = inertia_, scale = scale_;
   // Scale the elastic part by s, then add the mass diagonal and the inertia/gravity gradient.
-  parallel_for(elastic_.pattern().nnz(), [&](int64_t begin, int64_t end) {
+  parallel_for_ranges(elastic_.value_ranges(vertices), 8192, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) elastic_values[k] *= scale;
-  }, 8192);
+  });
   // The contact slabs are already weighted by s_c kappa (prepare()).
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
@@ -152,16 +201,16 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
                             friction_->local_hessians().begin() + friction_->slab_begin().back());
       slabs = contact_slabs_.data();
     }
-    contact_pattern_->assemble(elastic_values, slabs, values);
+    contact_pattern_->assemble(elastic_values, slabs, values, &vertices);
   }
-  parallel_for(model_.num_vertices, [&](int64_t begin, int64_t end) {
+  parallel_for_ranges(vertices, 1024, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v)
       for (int d = 0; d < 3; ++d) {
         const int64_t i = 3 * v + d;
         grad[i] = scale * (grad[i] - m[v] * g[d]) + inertia * m[v] * (x[i] - xt[i]);
         values[pattern.diagonal[i]] += inertia * m[v];
       }
-  }, 1024);
+  });
   if (kinematic_) {
     kinematic_->add_gradient(x, grad);
     kinematic_->add_hessian_diagonal(pattern, values);
@@ -178,6 +227,13 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
 
 double IncrementalPotential::max_step(const double* x, const double* p) {
   return contact_ ? contact_->max_step(x, p) : 1.0;
+}
+
+std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils() const {
+  std::vector<const std::vector<int32_t>*> lists;
+  if (contact_) lists.push_back(&contact_->stencils());
+  if (friction_ && friction_->num_stencils() > 0) lists.push_back(&friction_->stencils());
+  return lists;
 }
 
 void IncrementalPotential::remove_contact_acceleration(const double* x, std::vector<double>& a) {

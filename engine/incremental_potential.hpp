@@ -73,13 +73,38 @@ class IncrementalPotential {
   void set_profile(StepProfile* profile) { profile_ = profile; }
 
   void begin_solve(const double* x);
+  // E split over groups of moving vertices: out[g] (num_groups values, overwritten) sums the terms
+  // that touch group g's vertices (group_of_vertex[v], -1 = does not move); +inf when one of them
+  // is. Terms that touch no moving vertex are left out: while only the groups move, they are
+  // constant. Every term's moving vertices must share one group. The island solver's line search
+  // tests each group on its own with it (solver/newton.cpp).
+  void group_energy(const double* x, const int32_t* group_of_vertex, int32_t num_groups, double* out);
   // E(x); +inf when x inverts a tet whose material forbids it or touches in a contact pair.
   double energy(const double* x) const;
   void prepare(const double* x, bool first_iteration);
-  // Gradient (3n) and Hessian values (pattern() order, mass on the diagonal) at x.
-  void gradient_hessian(const double* x, double* grad, double* hessian_values);
+  // Gradient (3n) and Hessian values (pattern() order, mass on the diagonal) at x. With a subset
+  // (the islands still being solved), only its vertices' entries and columns are right; the
+  // others hold leftovers that the caller must not use.
+  void gradient_hessian(const double* x, double* grad, double* hessian_values,
+                        const ActiveSubset* subset = nullptr);
   // Largest fraction of the step p from x that is collision-free (1 without contact).
   double max_step(const double* x, const double* p);
+  // max_step for independent groups of vertices (barrier_potential.hpp): sweep(x, p) finds the
+  // candidates of x -> x + p (null: no contact), the caller joins its groups over them, then
+  // group_max_steps lowers alpha[g] to each group's collision-free fraction.
+  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr) {
+    if (contact_) contact_->sweep(x, p, moving);
+  }
+  const ContactCandidates* sweep_candidates() const { return contact_ ? &contact_->candidates() : nullptr; }
+  void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+    if (contact_) contact_->group_max_steps(x, group_of_vertex, alpha);
+  }
+  // The stencil lists (num x 4 vertex ids, -1 = none) that couple vertices in the Hessian beyond
+  // the elastic pattern: the barrier's active set and the lagged friction contacts.
+  std::vector<const std::vector<int32_t>*> coupling_stencils() const;
+  // The barrier's active stencils (what a change of kappa changes).
+  const std::vector<int32_t>* barrier_stencils() const { return contact_ ? &contact_->stencils() : nullptr; }
+
   // Returns true when the barrier stiffness changed (so E changed: re-evaluate it).
   bool end_iteration(const double* x);
 
@@ -113,6 +138,8 @@ class IncrementalPotential {
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
   std::vector<double> contact_gradient_;  // (3n) workspaces of remove_contact_acceleration
   std::vector<double> joint_gradient_;
+  // (num_groups) workspaces of group_energy, one per term
+  std::vector<double> group_elastic_, group_joints_, group_barrier_, group_friction_;
   const std::vector<double>* x_tilde_ = nullptr;
   double scale_ = 1.0;
   double contact_scale_ = 1.0;

@@ -92,6 +92,17 @@ double JointSet::energy(const double* x) const {
   return weight_ * sum;
 }
 
+void JointSet::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
+  for (int64_t j = 0; j < size(); ++j) {
+    const Joint& joint = joints_[j];
+    int32_t g = -1;
+    for (int k = 0; k < joint.count && g < 0; ++k) g = group_of_vertex[joint.vertex[k]];
+    if (g < 0) continue;
+    const Eigen::Vector3d c = violation(x, j);
+    total[g] += weight_ * (0.5 * stiffness_[j] * c.squaredNorm() - multiplier_[j].dot(c));
+  }
+}
+
 Eigen::Vector3d JointSet::force(const double* x, int64_t j) const {
   return multiplier_[j] - stiffness_[j] * violation(x, j);
 }

@@ -55,6 +55,9 @@ class JointSet {
   double max_violation(const double* x) const;
   // w sum_j Phi_j(x).
   double energy(const double* x) const;
+  // total[g] += the energy of the joints whose moving vertices are in group g
+  // (group_of_vertex[v], -1 = does not move).
+  void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   // grad += w sum_j J_j^T (k_j c_j - lambda_j).
   void add_gradient(const double* x, double* grad) const;
   // lambda_j <- lambda_j - k_j c_j(x).

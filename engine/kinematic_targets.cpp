@@ -63,6 +63,17 @@ double KinematicTargets::energy(const double* x) const {
   return sum;
 }
 
+void KinematicTargets::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
+  for (size_t i = 0; i < vertices_.size(); ++i) {
+    const int32_t g = group_of_vertex[vertices_[i]];
+    if (g < 0) continue;
+    for (int d = 0; d < 3; ++d) {
+      const double c = x[3 * size_t(vertices_[i]) + d] - target_[3 * i + d];
+      total[g] += (0.5 * stiffness_[i] * c - lambda_[3 * i + d]) * c;
+    }
+  }
+}
+
 void KinematicTargets::add_gradient(const double* x, double* grad) const {
   for (size_t i = 0; i < vertices_.size(); ++i)
     for (int d = 0; d < 3; ++d) {

@@ -42,6 +42,8 @@ class KinematicTargets {
 
   // max_i |x_i - t_i| [m].
   double max_violation(const double* x) const;
+  // total[g] += the energy of the targets of vertices in group g (group_of_vertex[v], -1 = none).
+  void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   double energy(const double* x) const;
   void add_gradient(const double* x, double* grad) const;
   // values[diagonal of each kinematic DOF] += k_i.

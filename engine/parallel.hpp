@@ -7,10 +7,12 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/partitioner.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace nexdyn {
@@ -61,6 +63,35 @@ double deterministic_sum(int64_t n, Chunk&& chunk, int64_t grain = kDefaultGrain
   double total = 0.0;
   for (double p : partial) total += p;
   return total;
+}
+
+// Deterministic sums per group over [0, n): item i belongs to group group_of(i) (-1: left out),
+// and run(begin, end) returns the sum over a run of consecutive items of one group. Each chunk of
+// `grain` items is cut into such runs, and the runs' sums are added to total[group] in item
+// order, so every total is the same double on any number of threads. Grouped energies use it:
+// the line search of the island solver (solver/newton.cpp) tests each group on its own.
+template <typename GroupOf, typename Run>
+void grouped_sum(int64_t n, int64_t grain, GroupOf&& group_of, Run&& run, double* total) {
+  if (n <= 0) return;
+  const int64_t num_chunks = (n + grain - 1) / grain;
+  std::vector<std::vector<std::pair<int32_t, double>>> runs(static_cast<size_t>(num_chunks));
+  for_each_chunk(n, grain, [&](int64_t c, int64_t begin, int64_t end) {
+    for (int64_t i = begin; i < end;) {
+      const int32_t g = group_of(i);
+      int64_t j = i + 1;
+      while (j < end && group_of(j) == g) ++j;
+      if (g >= 0) runs[c].emplace_back(g, run(i, j));
+      i = j;
+    }
+  });
+  for (const auto& chunk : runs)
+    for (const auto& [g, sum] : chunk) total[g] += sum;
+}
+
+// Runs a() and b() at the same time (each may use parallel_for itself).
+template <typename A, typename B>
+void run_both(A&& a, B&& b) {
+  tbb::parallel_invoke(a, b);
 }
 
 }  // namespace nexdyn

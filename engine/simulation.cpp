@@ -168,11 +168,16 @@ StepOutcome Simulation::step() {
     const int lags = scene_.contact.friction_iterations < 0 ? kMaxFrictionLags : scene_.contact.friction_iterations;
     for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
       const double before = friction_->total_normal_force();
+      // Only the bodies with friction contacts, before or after the new lag, see a new potential:
+      // the rest stay converged.
+      newton_->thaw(friction_->stencils());
       lag_friction(x_next_);
+      newton_->thaw(friction_->stencils());
       const double after = friction_->total_normal_force();
       if (scene_.contact.friction_iterations < 0 &&
           std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))
         break;
+      newton_->keep_converged_next_solve();
       result = solve_step(iterations);
     }
     if (result.status != StepStatus::ok) {

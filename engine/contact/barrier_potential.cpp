@@ -206,6 +206,32 @@ double BarrierPotential::energy(const double* x) const {
   return reduce_pairs(model_, candidates_, x, dhat2_, 0.0, SumEnergy{});
 }
 
+void BarrierPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
+  auto first_group = [&](std::initializer_list<int32_t> vertices) {
+    for (int32_t v : vertices)
+      if (group_of_vertex[v] >= 0) return group_of_vertex[v];
+    return -1;
+  };
+  auto over = [&](const std::vector<IndexPair>& pairs, auto&& group_of, auto&& eval) {
+    grouped_sum(static_cast<int64_t>(pairs.size()), kPairGrain, group_of, [&](int64_t b, int64_t e) {
+      double sum = 0.0;
+      for (int64_t i = b; i < e; ++i) sum += eval(model_, x, pairs[i], dhat2_).energy;
+      return sum;
+    }, total);
+  };
+  const ContactCandidates& c = candidates_;
+  over(c.vertex_triangle, [&](int64_t i) {
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{c.vertex_triangle[i].second}];
+    return first_group({c.vertex_triangle[i].first, t[0], t[1], t[2]});
+  }, eval_vertex_triangle);
+  over(c.edge_edge, [&](int64_t i) {
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{c.edge_edge[i].first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{c.edge_edge[i].second}];
+    return first_group({ea[0], ea[1], eb[0], eb[1]});
+  }, eval_edge_edge);
+  over(c.vertex_plane, [&](int64_t i) { return first_group({c.vertex_plane[i].first}); }, eval_vertex_plane);
+}
+
 double BarrierPotential::min_squared_distance(const double* x) const {
   return reduce_pairs(model_, candidates_, x, dhat2_, kInf, MinDistance{});
 }
@@ -682,45 +708,103 @@ void BarrierPotential::add_gradient(double* grad) const { add_stencil_gradients(
 // ---- CCD --------------------------------------------------------------------------------------
 
 double BarrierPotential::max_step(const double* x, const double* p) {
+  sweep(x, p);
+  double alpha = 1.0;
+  group_max_steps(x, nullptr, &alpha);
+  return alpha;
+}
+
+void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving) {
   ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
   const int64_t n = model_.num_dofs();
   parallel_for(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x1_[i] = x[i] + p[i];
   }, 8192);
-  find_candidates(x, x1_.data());
+  if (!moving) return find_candidates(x, x1_.data());
+  ProfileScope broad(profile_, StepPhase::broad_phase);
+  // Pairs of vertices that stay put keep their candidates: none of them moved since the last
+  // search, and that search covered where they are now. Only pairs with a moving vertex are
+  // searched again; the two sets are disjoint, and merging keeps the lists sorted.
+  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving);
+  auto still = [&](std::initializer_list<int32_t> vertices) {
+    for (int32_t v : vertices)
+      if (moving[v]) return false;
+    return true;
+  };
+  auto update = [&](std::vector<IndexPair>& list, const std::vector<IndexPair>& fresh, auto&& keep) {
+    kept_.clear();
+    for (const IndexPair& pr : list)
+      if (keep(pr)) kept_.push_back(pr);
+    list.resize(kept_.size() + fresh.size());
+    std::merge(kept_.begin(), kept_.end(), fresh.begin(), fresh.end(), list.begin());
+  };
+  update(candidates_.vertex_triangle, fresh_.vertex_triangle, [&](const IndexPair& pr) {
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return still({pr.first, t[0], t[1], t[2]});
+  });
+  update(candidates_.edge_edge, fresh_.edge_edge, [&](const IndexPair& pr) {
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return still({ea[0], ea[1], eb[0], eb[1]});
+  });
+  update(candidates_.vertex_plane, fresh_.vertex_plane,
+         [&](const IndexPair& pr) { return still({pr.first}); });
+}
+
+void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
   const double* y = x1_.data();
   const double min_distance = kCcdGapFraction * dhat_;
   const ContactCandidates& c = candidates_;
+  // The group a pair belongs to: that of its first moving vertex (all its moving vertices share
+  // one, by the caller's promise); -1 when none of them moves.
+  auto group_of = [&](std::initializer_list<int32_t> vertices) {
+    if (!group_of_vertex) return 0;
+    for (int32_t v : vertices)
+      if (group_of_vertex[v] >= 0) return group_of_vertex[v];
+    return -1;
+  };
 
-  // Earliest time of impact, per fixed chunk of pairs (each chunk passes its running minimum as
-  // tmax to cut work short; chunks are fixed, so the result is the same on any thread count).
-  auto earliest = [&](int64_t count, auto&& ccd) {
+  // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
+  // of one group passes its running minimum as tmax to cut work short. Each run leaves one
+  // (group, time) result, and the results are combined in chunk order: the same on any thread
+  // count.
+  auto earliest = [&](int64_t count, auto&& group, auto&& ccd) {
     const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
-    std::vector<double> partial(chunks, 1.0);
+    run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
     parallel_for(chunks, [&](int64_t cb, int64_t ce) {
       for (int64_t k = cb; k < ce; ++k) {
-        double t = 1.0;
+        std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
+        runs.clear();
         for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
+          const int32_t g = group(i);
+          if (g < 0) continue;
+          if (runs.empty() || runs.back().first != g) runs.emplace_back(g, 1.0);
           double toi = 1.0;
-          if (ccd(i, t, toi)) t = std::min(t, toi);
+          if (ccd(i, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
         }
-        partial[k] = t;
       }
     }, 1);
-    double t = 1.0;
-    for (double q : partial) t = std::min(t, q);
-    return t;
+    for (int64_t k = 0; k < chunks; ++k)
+      for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
   };
-  const double t_vt = earliest(static_cast<int64_t>(c.vertex_triangle.size()),
-                               [&](int64_t i, double tmax, double& toi) {
+  earliest(static_cast<int64_t>(c.vertex_triangle.size()), [&](int64_t i) {
+    const IndexPair& pr = c.vertex_triangle[i];
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return group_of({pr.first, t[0], t[1], t[2]});
+  }, [&](int64_t i, double tmax, double& toi) {
     const IndexPair& pr = c.vertex_triangle[i];
     const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
     return point_triangle_ccd(point(x, pr.first), point(x, t[0]), point(x, t[1]), point(x, t[2]),
                               point(y, pr.first), point(y, t[0]), point(y, t[1]), point(y, t[2]),
                               min_distance, tmax, toi);
   });
-  const double t_ee = earliest(static_cast<int64_t>(c.edge_edge.size()),
-                               [&](int64_t i, double tmax, double& toi) {
+  earliest(static_cast<int64_t>(c.edge_edge.size()), [&](int64_t i) {
+    const IndexPair& pr = c.edge_edge[i];
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return group_of({ea[0], ea[1], eb[0], eb[1]});
+  }, [&](int64_t i, double tmax, double& toi) {
     const IndexPair& pr = c.edge_edge[i];
     const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
     const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
@@ -728,14 +812,14 @@ double BarrierPotential::max_step(const double* x, const double* p) {
                          point(y, ea[0]), point(y, ea[1]), point(y, eb[0]), point(y, eb[1]),
                          min_distance, tmax, toi);
   });
-  const double t_vp = earliest(static_cast<int64_t>(c.vertex_plane.size()),
-                               [&](int64_t i, double tmax, double& toi) {
+  earliest(static_cast<int64_t>(c.vertex_plane.size()), [&](int64_t i) {
+    return group_of({c.vertex_plane[i].first});
+  }, [&](int64_t i, double tmax, double& toi) {
     const IndexPair& pr = c.vertex_plane[i];
     const ObstaclePlane& plane = model_.obstacle_planes[pr.second];
     return point_plane_ccd(point(x, pr.first), point(y, pr.first), plane.point, plane.normal,
                            min_distance, tmax, toi);
   });
-  return std::min({t_vt, t_ee, t_vp});
 }
 
 }  // namespace nexdyn

@@ -33,6 +33,7 @@
 #include "engine/step_profile.hpp"
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace nexdyn {
@@ -69,6 +70,10 @@ class BarrierPotential {
   // sum_k b(d_k(x)) over the candidates; +inf when a pair touches or crosses (d <= 0) or a vertex
   // is on or behind an obstacle plane.
   double energy(const double* x) const;
+  // total[g] += the barrier sum over the candidates whose moving vertices are in group g
+  // (group_of_vertex[v], -1 = does not move; pairs with no moving vertex are left out). A group
+  // with a touching pair gets +inf.
+  void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   // Smallest squared distance over the candidates (squared signed distance for planes, 0 behind
   // one); +inf without candidates.
   double min_squared_distance(const double* x) const;
@@ -115,12 +120,28 @@ class BarrierPotential {
   // the candidates for the sweep x -> x + p, so afterwards any point on it may be evaluated.
   double max_step(const double* x, const double* p);
 
+  // max_step in two parts, for motions made of independent groups (the islands of the Newton
+  // system, solver/islands.hpp). sweep() recomputes the candidates for x -> x + p; then
+  // group_max_steps() lowers alpha[g] to the largest collision-free fraction of group g's own
+  // motion. group_of_vertex[v] is v's group (-1: v does not move), and every candidate pair's
+  // moving vertices must share a group (join the groups over candidates() first). With a null
+  // group_of_vertex all vertices form group 0.
+  // With `moving` (num_vertices flags; p = 0 wherever it is 0), sweep() searches again only the
+  // pairs with a moving vertex and keeps the other pairs of the last search, valid because their
+  // vertices have not moved since. That makes it cost what the moving bodies cost.
+  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr);
+  void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
+
  private:
   const Model& model_;
   double dhat_ = 0.0, dhat2_ = 0.0;
   StepProfile* profile_ = nullptr;
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
+  ContactCandidates fresh_;        // workspaces of sweep() with moving vertices
+  std::vector<IndexPair> kept_;
+  // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)
+  std::vector<std::vector<std::pair<int32_t, double>>> run_minima_;
 
   // A point-point (c = -1) or point-edge feature before merging: its vertices in key order.
   struct FeatureKey {

@@ -41,24 +41,32 @@ constexpr int64_t kQueryGrain = 512;
 constexpr int32_t kMaxScan = 2048;
 constexpr int32_t kMaxBodyScan = 2048;
 
-bool is_free(const Model& m, int32_t v) { return m.dirichlet[v] < 0; }
+// free[v]: v can move in the search's motion. By default every vertex not held by a Dirichlet
+// condition; a caller re-searching after only some vertices moved passes those instead.
+bool is_free(const uint8_t* free, int32_t v) { return free[v] != 0; }
+
+std::vector<uint8_t> free_vertices(const Model& m, const uint8_t* moving) {
+  std::vector<uint8_t> free(static_cast<size_t>(m.num_vertices));
+  for (int32_t v = 0; v < m.num_vertices; ++v) free[v] = moving ? moving[v] : m.dirichlet[v] < 0;
+  return free;
+}
 
 // The filters of candidates.hpp, shared by the fast and the brute-force paths. Written with
 // bitwise operators: they run on every box overlap, and whether a pair passes is unpredictable.
-bool keep_vertex_triangle(const Model& m, int32_t v, int32_t t) {
+bool keep_vertex_triangle(const Model& m, const uint8_t* free, int32_t v, int32_t t) {
   const int32_t* tri = &m.surface_triangles[3 * int64_t{t}];
   const bool not_corner = (v != tri[0]) & (v != tri[1]) & (v != tri[2]);
   const bool any_free =
-      is_free(m, v) | is_free(m, tri[0]) | is_free(m, tri[1]) | is_free(m, tri[2]);
+      is_free(free, v) | is_free(free, tri[0]) | is_free(free, tri[1]) | is_free(free, tri[2]);
   return not_corner & any_free;
 }
 
-bool keep_edge_edge(const Model& m, int32_t a, int32_t b) {
+bool keep_edge_edge(const Model& m, const uint8_t* free, int32_t a, int32_t b) {
   const int32_t* ea = &m.surface_edges[2 * int64_t{a}];
   const int32_t* eb = &m.surface_edges[2 * int64_t{b}];
   const bool disjoint = (ea[0] != eb[0]) & (ea[0] != eb[1]) & (ea[1] != eb[0]) & (ea[1] != eb[1]);
   const bool any_free =
-      is_free(m, ea[0]) | is_free(m, ea[1]) | is_free(m, eb[0]) | is_free(m, eb[1]);
+      is_free(free, ea[0]) | is_free(free, ea[1]) | is_free(free, eb[0]) | is_free(free, eb[1]);
   return disjoint & any_free;
 }
 
@@ -146,7 +154,7 @@ struct BodyPrimitives {
   bool any_free = false;  // some vertex of the body is free: its own pairs can matter
 };
 
-std::vector<BodyPrimitives> body_primitives(const Model& m) {
+std::vector<BodyPrimitives> body_primitives(const Model& m, const uint8_t* free) {
   std::vector<BodyPrimitives> out(m.bodies.size());
   for (size_t b = 0; b < m.bodies.size(); ++b) {
     const BodyRange& body = m.bodies[b];
@@ -161,7 +169,7 @@ std::vector<BodyPrimitives> body_primitives(const Model& m) {
     p.e_begin = body.edge_begin;
     p.e_end = body.edge_begin + body.edge_count;
     for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count && !p.any_free; ++v)
-      p.any_free = is_free(m, v);
+      p.any_free = is_free(free, v);
   }
   return out;
 }
@@ -340,12 +348,12 @@ struct BodyLists {
 // Per primitive of K vertices: whether one of them is free. Primitives of different bodies share
 // no vertex, so for them this is the whole filter of candidates.hpp.
 template <int K>
-std::vector<uint8_t> free_flags(const Model& m, const int32_t* ids, int64_t n) {
+std::vector<uint8_t> free_flags(const uint8_t* free, const int32_t* ids, int64_t n) {
   std::vector<uint8_t> out(static_cast<size_t>(n));
   parallel_for(n, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       bool any = false;
-      for (int k = 0; k < K; ++k) any |= is_free(m, ids[K * i + k]);
+      for (int k = 0; k < K; ++k) any |= is_free(free, ids[K * i + k]);
       out[i] = any;
     }
   }, 4096);
@@ -399,11 +407,11 @@ NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedB
   return s;
 }
 
-void find_vertex_plane(const Model& m, const double* x0, const double* x1, double inflation,
+void find_vertex_plane(const Model& m, const uint8_t* free, const double* x0, const double* x1, double inflation,
                        std::vector<IndexPair>& out) {
   out.clear();
   for (int32_t v : m.surface_vertices) {
-    if (!is_free(m, v)) continue;
+    if (!is_free(free, v)) continue;
     for (size_t p = 0; p < m.obstacle_planes.size(); ++p) {
       const ObstaclePlane& plane = m.obstacle_planes[p];
       auto signed_distance = [&](const double* x) {
@@ -443,18 +451,20 @@ struct SameBodyTrees {
 }  // namespace
 
 void find_contact_candidates(const Model& m, const double* x0, const double* x1, double inflation,
-                             ContactCandidates& out) {
+                             ContactCandidates& out, const uint8_t* moving) {
+  const std::vector<uint8_t> free_storage = free_vertices(m, moving);
+  const uint8_t* free = free_storage.data();
   const SurfaceBoxes boxes(m, x0, x1, inflation);
   const FrameBoxes& world = boxes.world;
   const FrameBoxes& own = boxes.body_frame();
-  const std::vector<BodyPrimitives> prims = body_primitives(m);
+  const std::vector<BodyPrimitives> prims = body_primitives(m, free);
   const auto nb = static_cast<int64_t>(m.bodies.size());
   const NeighborBodies neighbors = neighbor_bodies(m, prims, world);
 
   const auto nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
   const auto ne = static_cast<int64_t>(m.surface_edges.size() / 2);
-  const std::vector<uint8_t> tri_free = free_flags<3>(m, m.surface_triangles.data(), nt);
-  const std::vector<uint8_t> edge_free = free_flags<2>(m, m.surface_edges.data(), ne);
+  const std::vector<uint8_t> tri_free = free_flags<3>(free, m.surface_triangles.data(), nt);
+  const std::vector<uint8_t> edge_free = free_flags<2>(free, m.surface_edges.data(), ne);
   // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
   // lower edge, so only the higher-numbered neighbours' edges.
   const BodyLists world_lists(prims, world);
@@ -517,7 +527,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       [&](int32_t i, PairBuffer& buffer) {
         const int32_t v = m.surface_vertices[i];
         const int32_t body = m.vertex_body[v];
-        const bool v_free = is_free(m, v);
+        const bool v_free = is_free(free, v);
         const double* lo = &world.v_lo[3 * int64_t{i}];
         const double* hi = &world.v_hi[3 * int64_t{i}];
         int32_t* near = buffer.scratch(neighbors.ptr[body + 1] - neighbors.ptr[body], 1);
@@ -528,7 +538,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
         if (prims[body].any_free) {
           const double* own_lo = &own.v_lo[3 * int64_t{i}];
           const double* own_hi = &own.v_hi[3 * int64_t{i}];
-          auto keep = [&](int32_t t) { return keep_vertex_triangle(m, v, t); };
+          auto keep = [&](int32_t t) { return keep_vertex_triangle(m, free, v, t); };
           if (same_body.triangle_tree[body]) {
             put_tree_hits(same_body.triangles[body], own_lo, own_hi, v, keep, buffer);
           } else {
@@ -551,10 +561,10 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
           const double* own_lo = &own.e_lo[3 * int64_t{a}];
           const double* own_hi = &own.e_hi[3 * int64_t{a}];
           if (same_body.edge_tree[body]) {
-            auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m, a, b); };
+            auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m, free, a, b); };
             put_tree_hits(same_body.edges[body], own_lo, own_hi, a, keep, buffer);
           } else {
-            auto keep = [&](int32_t b) { return keep_edge_edge(m, a, b); };
+            auto keep = [&](int32_t b) { return keep_edge_edge(m, free, a, b); };
             int32_t* ids = buffer.scratch(own_lists.edges.size(body));
             const int32_t above_a = a + 1 - prims[body].e_begin;
             buffer.put_kept(a, ids, own_lists.edges.scan(body, above_a, own_lo, own_hi, ids), keep);
@@ -570,11 +580,13 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       },
       out.edge_edge);
 
-  find_vertex_plane(m, x0, x1, inflation, out.vertex_plane);
+  find_vertex_plane(m, free, x0, x1, inflation, out.vertex_plane);
 }
 
 void find_contact_candidates_brute_force(const Model& m, const double* x0, const double* x1,
-                                         double inflation, ContactCandidates& out) {
+                                         double inflation, ContactCandidates& out, const uint8_t* moving) {
+  const std::vector<uint8_t> free_storage = free_vertices(m, moving);
+  const uint8_t* free = free_storage.data();
   const SurfaceBoxes boxes(m, x0, x1, inflation);
   // Same-body pairs compare body-frame boxes, others world boxes.
   auto frame = [&](int32_t body_a, int32_t body_b) -> const FrameBoxes& {
@@ -589,7 +601,7 @@ void find_contact_candidates_brute_force(const Model& m, const double* x0, const
     for (int64_t t = 0; t < nt; ++t) {
       const FrameBoxes& f = frame(m.vertex_body[v], m.vertex_body[m.surface_triangles[3 * t]]);
       if (boxes_overlap(f.v_lo.data(), f.v_hi.data(), i, f.t_lo.data(), f.t_hi.data(), t) &&
-          keep_vertex_triangle(m, v, static_cast<int32_t>(t)))
+          keep_vertex_triangle(m, free, v, static_cast<int32_t>(t)))
         out.vertex_triangle.emplace_back(v, static_cast<int32_t>(t));
     }
   }
@@ -598,10 +610,10 @@ void find_contact_candidates_brute_force(const Model& m, const double* x0, const
       const FrameBoxes& f =
           frame(m.vertex_body[m.surface_edges[2 * e]], m.vertex_body[m.surface_edges[2 * g]]);
       if (boxes_overlap(f.e_lo.data(), f.e_hi.data(), e, f.e_lo.data(), f.e_hi.data(), g) &&
-          keep_edge_edge(m, static_cast<int32_t>(e), static_cast<int32_t>(g)))
+          keep_edge_edge(m, free, static_cast<int32_t>(e), static_cast<int32_t>(g)))
         out.edge_edge.emplace_back(static_cast<int32_t>(e), static_cast<int32_t>(g));
     }
-  find_vertex_plane(m, x0, x1, inflation, out.vertex_plane);
+  find_vertex_plane(m, free, x0, x1, inflation, out.vertex_plane);
 }
 
 }  // namespace nexdyn

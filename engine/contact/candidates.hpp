@@ -47,11 +47,15 @@ struct ContactCandidates {
 // x0 -> x1 (positions (num_vertices x 3)); x1 == nullptr means the static configuration x0.
 // Vertex-plane pairs: the vertex's signed distance to the plane is below 2 * inflation at x0 or
 // x1 (it is linear in time, so that covers the whole motion).
+// With `moving` (num_vertices flags), "free" means moving[v] instead of not Dirichlet-held: only
+// pairs with a vertex that moves are found, and the work is that of the moving bodies only
+// (for re-searching after a motion of a few bodies, barrier_potential.cpp).
 void find_contact_candidates(const Model& model, const double* x0, const double* x1,
-                             double inflation, ContactCandidates& out);
+                             double inflation, ContactCandidates& out, const uint8_t* moving = nullptr);
 
 // The O(n^2) reference with the same contract, for tests.
 void find_contact_candidates_brute_force(const Model& model, const double* x0, const double* x1,
-                                         double inflation, ContactCandidates& out);
+                                         double inflation, ContactCandidates& out,
+                                         const uint8_t* moving = nullptr);
 
 }  // namespace nexdyn

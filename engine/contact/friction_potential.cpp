@@ -158,6 +158,21 @@ double FrictionPotential::energy(const double* x) const {
   }, 1024);
 }
 
+void FrictionPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
+  grouped_sum(num_stencils(), 1024, [&](int64_t k) {
+    for (int a = 0; a < 4; ++a) {
+      const int32_t v = stencils_[4 * k + a];
+      if (v >= 0 && group_of_vertex[v] >= 0) return group_of_vertex[v];
+    }
+    return -1;
+  }, [&](int64_t begin, int64_t end) {
+    double sum = 0.0;
+    for (int64_t k = begin; k < end; ++k)
+      sum += friction_energy(basis_[k], displacement(x, k), mu_[k], normal_force_[k], eps_u_);
+    return sum;
+  }, total);
+}
+
 void FrictionPotential::compute_derivatives(const double* x, double weight, bool with_hessian) {
   const int64_t num = num_stencils();
   gradients_.resize(12 * num);

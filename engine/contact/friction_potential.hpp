@@ -62,6 +62,9 @@ class FrictionPotential {
   // Sum of the lagged normal forces [N]: the lagging loop compares it between lags.
   double total_normal_force() const { return total_normal_force_; }
 
+  // total[g] += the energy of the stencils whose moving vertices are in group g
+  // (group_of_vertex[v], -1 = does not move).
+  void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   double energy(const double* x) const;
   // Derivatives of weight * D at x; layout as BarrierPotential's (stencils, slab_begin).
   void compute_derivatives(const double* x, double weight, bool with_hessian);

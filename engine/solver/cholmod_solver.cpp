@@ -31,7 +31,7 @@ cholmod_sparse wrap(int64_t n, const int64_t* col_ptr, const int64_t* row_idx, c
 }
 }  // namespace
 
-CholmodSolver::CholmodSolver() {
+CholmodSolver::CholmodSolver(bool supernodal) {
   // Debian's CHOLMOD runs small loops of the supernodal factorisation in OpenMP regions with a
   // hard-coded num_threads clause; their threads spin against TBB's for the same two cores (a 2.4x
   // slowdown measured on the cantilever). No active parallel level means every such region runs
@@ -39,7 +39,9 @@ CholmodSolver::CholmodSolver() {
   omp_set_max_active_levels(0);
   common_ = new cholmod_common;
   cholmod_l_start(common_);
-  common_->supernodal = CHOLMOD_SUPERNODAL;
+  common_->supernodal = supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
+  // A simplicial LDL^T would accept an indefinite matrix; LL^T stops at the first bad pivot.
+  common_->final_ll = 1;
   common_->print = 0;
   common_->error_handler = nullptr;
   // Keep going after a not-positive-definite pivot is found so that we can report it ourselves.
@@ -82,6 +84,7 @@ std::string CholmodSolver::ordering_name() const {
 }
 
 bool CholmodSolver::factorize(const double* values) {
+  omp_set_max_active_levels(0);  // again: this may be another thread than the constructor's
   cholmod_sparse a = wrap(n_, col_ptr_, row_idx_, values);
   const int ok = cholmod_l_factorize(&a, factor_, common_);
   if (!ok || common_->status == CHOLMOD_NOT_POSDEF) {

@@ -1,4 +1,4 @@
-// Sparse Cholesky of the Newton system with CHOLMOD (supernodal, int64 indices).
+// Sparse Cholesky of the Newton system with CHOLMOD (supernodal or simplicial, int64 indices).
 //
 // The symbolic analysis (fill-reducing ordering, elimination tree, supernodes) depends only on the
 // pattern, so it runs once per pattern and every Newton iteration after that pays only for the
@@ -18,7 +18,10 @@ namespace nexdyn {
 
 class CholmodSolver {
  public:
-  CholmodSolver();
+  // Supernodal factors run dense BLAS kernels on supernodes: the fastest choice for large
+  // matrices. Simplicial ones (an LDL^T, no BLAS) win on small ones and can run on several threads
+  // at once (island_system.hpp).
+  explicit CholmodSolver(bool supernodal = true);
   ~CholmodSolver();
   CholmodSolver(const CholmodSolver&) = delete;
   CholmodSolver& operator=(const CholmodSolver&) = delete;

@@ -184,10 +184,11 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
   return changed;
 }
 
-void ContactPattern::assemble(const double* elastic_values, const double* slabs, double* values) const {
+void ContactPattern::assemble(const double* elastic_values, const double* slabs, double* values,
+                              const IndexRanges* vertices) const {
   const CscPattern& e = elastic_;
-  const int64_t nv = merged_.num_dofs / 3;
-  parallel_for(nv, [&](int64_t begin, int64_t end) {
+  const IndexRanges all{{0, merged_.num_dofs / 3}};
+  parallel_for_ranges(vertices ? *vertices : all, 256, [&](int64_t begin, int64_t end) {
     for (int64_t j = begin; j < end; ++j)
       for (int c = 0; c < 3; ++c) {
         const int64_t column = 3 * j + c;
@@ -209,7 +210,7 @@ void ContactPattern::assemble(const double* elastic_values, const double* slabs,
           for (int r = 0; r < rows; ++r) out[r] += in[r];
         }
       }
-  }, 256);
+  });
 }
 
 }  // namespace nexdyn

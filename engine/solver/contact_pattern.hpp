@@ -13,6 +13,7 @@
 // within a column, so every value is summed in the same order whatever the number of threads.
 #pragma once
 
+#include "engine/active_subset.hpp"
 #include "engine/solver/hessian_pattern.hpp"
 
 #include <cstdint>
@@ -40,7 +41,9 @@ class ContactPattern {
 
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
   // of their slabs (laid out as given to update()).
-  void assemble(const double* elastic_values, const double* contact_slabs, double* values) const;
+  // With vertex ranges, only those vertices' columns are written.
+  void assemble(const double* elastic_values, const double* contact_slabs, double* values,
+                const IndexRanges* vertices = nullptr) const;
 
  private:
   void rebuild(std::vector<std::pair<int32_t, int32_t>> pairs);

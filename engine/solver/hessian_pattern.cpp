@@ -99,6 +99,13 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
 
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values) {
   parallel_for(pattern.num_segments(), [&](int64_t begin, int64_t end) {
+    gather_hessian_segments(pattern, slab, values, begin, end);
+  }, 2048);
+}
+
+void gather_hessian_segments(const HessianPattern& pattern, const double* slab, double* values,
+                             int64_t begin, int64_t end) {
+  {
     for (int64_t g = begin; g < end; ++g) {
       // Rows past the segment's length read the (unused) lower triangle of a diagonal block:
       // still inside the tet's slab, and simpler than three loop variants.
@@ -114,7 +121,7 @@ void gather_hessian(const HessianPattern& pattern, const double* slab, double* v
       if (pattern.segment_length[g] > 1) out[1] = s1;
       if (pattern.segment_length[g] > 2) out[2] = s2;
     }
-  }, 2048);
+  }
 }
 
 }  // namespace nexdyn

@@ -49,5 +49,8 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
 // values = sum of the slab entries of every segment (parallel over segments; each value is summed
 // in tet order whatever the thread count).
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values);
+// The same over the segments [begin, end) only.
+void gather_hessian_segments(const HessianPattern& pattern, const double* slab, double* values,
+                             int64_t begin, int64_t end);
 
 }  // namespace nexdyn

@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <initializer_list>
+#include <iterator>
 
 namespace nexdyn {
 
@@ -22,7 +25,7 @@ std::string format(const char* fmt, double a, double b = 0.0) {
 }  // namespace
 
 NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
-    : model_(model), potential_(potential) {
+    : model_(model), potential_(potential), islands_(potential.pattern(), model.num_vertices) {
   const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
   for (int32_t v = 0; v < model.num_vertices; ++v)
@@ -31,13 +34,17 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   grad_.resize(n);
   direction_.resize(n);
   trial_.resize(n);
-  analyze_pattern();
+  vertex_token_.assign(model.num_vertices, 0);
+  hold({}, false);
 }
 
 void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held) {
   for (int32_t v : vertices)
     for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = held;
   collect_constrained_values();
+  std::vector<uint8_t> moving(model_.num_vertices);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) moving[v] = !constrained_dof_[3 * int64_t{v}];
+  islands_.set_moving(moving);
 }
 
 void NewtonSolver::collect_constrained_values() {
@@ -47,13 +54,7 @@ void NewtonSolver::collect_constrained_values() {
     for (int64_t k = pattern.col_ptr[c]; k < pattern.col_ptr[c + 1]; ++k)
       if (constrained_dof_[c] || constrained_dof_[pattern.row_idx[k]])
         constrained_values_.push_back(k);
-}
-
-void NewtonSolver::analyze_pattern() {
-  const CscPattern& pattern = potential_.pattern();
-  collect_constrained_values();
   values_.resize(pattern.nnz());
-  cholmod_.analyze(pattern.num_dofs, pattern.col_ptr.data(), pattern.row_idx.data());
   analyzed_version_ = potential_.pattern_version();
 }
 
@@ -67,12 +68,133 @@ void NewtonSolver::eliminate_dirichlet(double* grad, double* values) const {
     }
 }
 
+bool NewtonSolver::frozen(int32_t island) const {
+  const int32_t* v = islands_.vertices().data() + islands_.vertex_ptr()[island];
+  const int32_t size = islands_.island_size(island);
+  const int32_t token = vertex_token_[v[0]];
+  if (token == 0 || token_size_[token] != size) return false;
+  for (int32_t k = 1; k < size; ++k)
+    if (vertex_token_[v[k]] != token) return false;
+  return true;
+}
+
+void NewtonSolver::mark_converged(int32_t island) {
+  const int32_t token = static_cast<int32_t>(token_size_.size());
+  token_size_.push_back(islands_.island_size(island));
+  for (int32_t k = islands_.vertex_ptr()[island]; k < islands_.vertex_ptr()[island + 1]; ++k)
+    vertex_token_[islands_.vertices()[k]] = token;
+}
+
+void NewtonSolver::update_subset() {
+  vertex_active_.assign(model_.num_vertices, 0);
+  for (int32_t i : active_)
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+      vertex_active_[islands_.vertices()[k]] = 1;
+  subset_.vertices.clear();
+  subset_.tets.clear();
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    if (vertex_active_[v]) append_index(subset_.vertices, v);
+  const int32_t* tets = model_.tets.data();
+  for (int32_t t = 0; t < model_.num_tets; ++t)
+    if (vertex_active_[tets[4 * t]] | vertex_active_[tets[4 * t + 1]] | vertex_active_[tets[4 * t + 2]] |
+        vertex_active_[tets[4 * t + 3]])
+      append_index(subset_.tets, t);
+}
+
+void NewtonSolver::thaw(const std::vector<int32_t>& stencils) {
+  for (int32_t v : stencils)
+    if (v >= 0) vertex_token_[v] = 0;
+}
+
+void NewtonSolver::unfreeze_contacts() {
+  // Only the islands with barrier stencils feel kappa; one cleared vertex thaws its island.
+  if (const std::vector<int32_t>* stencils = potential_.barrier_stencils())
+    for (int32_t v : *stencils)
+      if (v >= 0) vertex_token_[v] = 0;
+}
+
+IslandSystem& NewtonSolver::island_system(int32_t i) {
+  const int32_t* v = islands_.vertices().data() + islands_.vertex_ptr()[i];
+  const int32_t size = islands_.island_size(i);
+  uint64_t hash = 1469598103934665603ull;  // FNV-1a over the vertex ids
+  for (int32_t k = 0; k < size; ++k) hash = (hash ^ static_cast<uint32_t>(v[k])) * 1099511628211ull;
+  std::vector<std::unique_ptr<IslandSystem>>& bucket = systems_[hash];
+  IslandSystem* system = nullptr;
+  for (auto& candidate : bucket)
+    if (candidate->vertices().size() == static_cast<size_t>(size) &&
+        std::equal(v, v + size, candidate->vertices().begin()))
+      system = candidate.get();
+  if (!system) {
+    bucket.push_back(std::make_unique<IslandSystem>(std::vector<int32_t>(v, v + size)));
+    system = bucket.back().get();
+  }
+  system->last_used = solve_count_;
+  return *system;
+}
+
+int64_t NewtonSolver::solve_islands(int& analyses) {
+  const int64_t count = static_cast<int64_t>(active_.size());
+  active_system_.resize(count);
+  active_ok_.assign(count, 1);
+  for (int64_t a = 0; a < count; ++a) active_system_[a] = &island_system(active_[a]);
+  {
+    // Symbolic analyses of islands whose block of the pattern changed (no BLAS: all parallel).
+    ProfileScope scope(profile_, StepPhase::analysis);
+    std::vector<uint8_t> analyzed(count, 0);
+    parallel_for(count, [&](int64_t begin, int64_t end) {
+      for (int64_t a = begin; a < end; ++a)
+        analyzed[a] = active_system_[a]->update_pattern(potential_.pattern(), potential_.pattern_version(),
+                                                        islands_.island_of_vertex().data(),
+                                                        islands_.local_indices().data(), active_[a]);
+    }, 1);
+    for (uint8_t changed : analyzed) analyses += changed;
+  }
+  // Islands that call the BLAS run one after the other on one thread while the rest share the
+  // others (island_system.hpp); each island's numbers are the same on any thread count.
+  std::vector<int64_t> blas, parallel;
+  for (int64_t a = 0; a < count; ++a) (active_system_[a]->uses_blas() ? blas : parallel).push_back(a);
+  auto run = [&](auto&& work) {
+    run_both([&] { for (int64_t a : blas) work(a); },
+             [&] {
+               parallel_for(static_cast<int64_t>(parallel.size()), [&](int64_t begin, int64_t end) {
+                 for (int64_t k = begin; k < end; ++k) work(parallel[k]);
+               }, 1);
+             });
+  };
+  {
+    ProfileScope scope(profile_, StepPhase::factorization);
+    run([&](int64_t a) { active_ok_[a] = active_system_[a]->factorize(values_.data()); });
+  }
+  for (int64_t a = 0; a < count; ++a)
+    if (!active_ok_[a]) return a;
+  {
+    ProfileScope scope(profile_, StepPhase::solve);
+    run([&](int64_t a) { active_system_[a]->solve(grad_.data(), direction_.data()); });
+  }
+  return -1;
+}
+
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
   const int64_t n = static_cast<int64_t>(x.size());
+  // Forget the islands that went unused for a whole solve, and every convergence mark (unless
+  // told to keep them).
+  ++solve_count_;
+  for (auto it = systems_.begin(); it != systems_.end();) {
+    auto& bucket = it->second;
+    bucket.erase(std::remove_if(bucket.begin(), bucket.end(),
+                                [&](const auto& s) { return s->last_used < solve_count_ - 1; }),
+                 bucket.end());
+    it = bucket.empty() ? systems_.erase(it) : std::next(it);
+  }
+  if (!keep_converged_) {
+    std::fill(vertex_token_.begin(), vertex_token_.end(), 0);
+    token_size_.assign(1, 0);
+  }
+  keep_converged_ = false;
+
   potential_.begin_solve(x.data());
-  double energy = potential_.energy(x.data());
-  if (!std::isfinite(energy)) {
+  if (!std::isfinite(potential_.energy(x.data()))) {
     result.status = StepStatus::non_finite;
     result.message = "the starting point of the step has infinite energy (an inverted tet or "
                      "touching contact)";
@@ -80,76 +202,164 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   }
   for (int it = 0; it < settings.max_iterations; ++it) {
     potential_.prepare(x.data(), it == 0);
-    if (potential_.pattern_version() != analyzed_version_) {
-      ProfileScope scope(profile_, StepPhase::analysis);
-      analyze_pattern();
-      ++result.analyses;
-    }
-    potential_.gradient_hessian(x.data(), grad_.data(), values_.data());
+    if (potential_.pattern_version() != analyzed_version_) collect_constrained_values();
+
+    // Islands at x; the ones that have not converged are assembled, factorised and solved.
+    islands_.build(potential_.coupling_stencils());
+    active_.clear();
+    for (int32_t i = 0; i < islands_.num_islands(); ++i)
+      if (!frozen(i)) active_.push_back(i);
+    update_subset();
+    potential_.gradient_hessian(x.data(), grad_.data(), values_.data(), &subset_);
     eliminate_dirichlet(grad_.data(), values_.data());
-    if (!std::all_of(grad_.begin(), grad_.end(), [](double g) { return std::isfinite(g); })) {
-      result.status = StepStatus::non_finite;
-      result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it);
-      return result;
-    }
-    {
-      ProfileScope scope(profile_, StepPhase::factorization);
-      if (!cholmod_.factorize(values_.data())) {
-        result.status = StepStatus::factorization_failed;
-        result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
-                         cholmod_.error();
+    for (const auto& [begin, end] : subset_.vertices)
+      if (!std::all_of(&grad_[3 * begin], &grad_[3 * end], [](double g) { return std::isfinite(g); })) {
+        result.status = StepStatus::non_finite;
+        result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it);
         return result;
       }
-    }
-    {
-      ProfileScope scope(profile_, StepPhase::solve);
-      cholmod_.solve(grad_.data(), direction_.data());
-    }
-    double max_step = 0.0, slope = 0.0;
-    for (int64_t i = 0; i < n; ++i) {
-      direction_[i] = -direction_[i];
-      max_step = std::max(max_step, std::abs(direction_[i]));
-      slope += grad_[i] * direction_[i];
-    }
-    result.iterations = it + 1;
-    result.increment = max_step / settings.dt;
-    if (result.increment < settings.tolerance) {
-      result.energy = energy;
+    std::fill(direction_.begin(), direction_.end(), 0.0);
+    const int64_t failed = solve_islands(result.analyses);
+    result.island_solves += static_cast<int64_t>(active_.size());
+    if (failed >= 0) {
+      result.status = StepStatus::factorization_failed;
+      result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
+                       active_system_[failed]->error();
       return result;
     }
 
-    // Backtracking line search. Energies are compared with a round-off allowance: near the
-    // minimum the decrease s*alpha*g.p can be smaller than the error of summing E itself.
-    const double noise = 1e-13 * std::max(1.0, std::abs(energy));
-    double alpha = potential_.max_step(x.data(), direction_.data()), trial_energy = 0.0;
-    if (!(alpha > 0.0)) {
-      result.status = StepStatus::line_search_failed;
-      result.message = "continuous collision detection allows no motion along the Newton direction";
-      return result;
+    // p = -H^-1 g on the active islands. An island below the tolerance has converged: it stays
+    // where it is (p = 0 there) until it changes or kappa does.
+    result.iterations = it + 1;
+    result.increment = 0.0;
+    const int32_t num_islands = islands_.num_islands();
+    island_moves_.assign(num_islands, 0);
+    bool any_moving = false;
+    for (int32_t i : active_) {
+      double max_step = 0.0;
+      for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+        for (int d = 0; d < 3; ++d) {
+          double& p = direction_[3 * int64_t{islands_.vertices()[k]} + d];
+          p = -p;
+          max_step = std::max(max_step, std::abs(p));
+        }
+      const double increment = max_step / settings.dt;
+      result.increment = std::max(result.increment, increment);
+      if (increment >= settings.tolerance) {
+        island_moves_[i] = 1;
+        any_moving = true;
+        continue;
+      }
+      mark_converged(i);
+      for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+        for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] = 0.0;
     }
+    if (!any_moving) return result;
+
+    // Groups: the moving islands, joined where a pair of the CCD sweep links two of them (they
+    // may meet along the step, so they share a step length and an energy test).
+    vertex_moves_.resize(model_.num_vertices);
+    for (int32_t v = 0; v < model_.num_vertices; ++v) {
+      const int32_t i = islands_.island_of(v);
+      vertex_moves_[v] = i >= 0 && island_moves_[i];
+    }
+    potential_.sweep(x.data(), direction_.data(), vertex_moves_.data());
+    groups_.reset(num_islands);
+    if (const ContactCandidates* c = potential_.sweep_candidates()) {
+      const std::vector<int32_t>& island_of = islands_.island_of_vertex();
+      auto join = [&](std::initializer_list<int32_t> vertices) {
+        int32_t first = -1;
+        for (int32_t v : vertices) {
+          const int32_t i = island_of[v];
+          if (i < 0 || !island_moves_[i]) continue;
+          if (first < 0) first = i;
+          else groups_.join(first, i);
+        }
+      };
+      for (const IndexPair& pr : c->vertex_triangle) {
+        const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+        join({pr.first, t[0], t[1], t[2]});
+      }
+      for (const IndexPair& pr : c->edge_edge) {
+        const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+        const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+        join({ea[0], ea[1], eb[0], eb[1]});
+      }
+    }
+    int32_t num_groups = 0;
+    group_of_island_.assign(num_islands, -1);
+    for (int32_t i = 0; i < num_islands; ++i) {
+      if (!island_moves_[i]) continue;
+      const int32_t root = groups_.find(i);  // the smallest island of the group: numbered first
+      group_of_island_[i] = root == i ? num_groups++ : group_of_island_[root];
+    }
+    group_of_vertex_.resize(model_.num_vertices);
+    for (int32_t v = 0; v < model_.num_vertices; ++v) {
+      const int32_t i = islands_.island_of(v);
+      group_of_vertex_[v] = i < 0 ? -1 : group_of_island_[i];
+    }
+
+    // Each group's largest collision-free fraction of its own motion, then its slope.
+    group_alpha_.assign(num_groups, 1.0);
+    potential_.group_max_steps(x.data(), group_of_vertex_.data(), group_alpha_.data());
+    for (int32_t k = 0; k < num_groups; ++k)
+      if (!(group_alpha_[k] > 0.0)) {
+        result.status = StepStatus::line_search_failed;
+        result.message = "continuous collision detection allows no motion along the Newton direction";
+        return result;
+      }
+    group_slope_.assign(num_groups, 0.0);
+    for (int64_t i = 0; i < n; ++i) {
+      const int32_t g = group_of_vertex_[i / 3];
+      if (g < 0) continue;
+      direction_[i] *= group_alpha_[g];
+      group_slope_[g] += grad_[i] * direction_[i];
+    }
+
+    // Backtracking line search, group by group: the energy is a sum over groups plus terms that
+    // do not move, so each group halves its own step until its own part of E decreases enough.
+    // Energies are compared with a round-off allowance: near the minimum the decrease
+    // s*alpha*g.p can be smaller than the error of summing E itself.
     {
       ProfileScope scope(profile_, StepPhase::line_search);
-      for (;;) {
-        for (int64_t i = 0; i < n; ++i) trial_[i] = x[i] + alpha * direction_[i];
-        trial_energy = potential_.energy(trial_.data());
-        if (trial_energy <= energy + kArmijo * alpha * slope + noise) break;
-        alpha *= 0.5;
-        if (alpha < kMinStepLength) {
-          result.status = StepStatus::line_search_failed;
-          result.message = format("line search found no decrease along the Newton direction "
-                                  "(increment %.3g m/s, energy %.6g)", result.increment, energy);
-          return result;
+      group_start_.resize(num_groups);
+      group_trial_.resize(num_groups);
+      potential_.group_energy(x.data(), group_of_vertex_.data(), num_groups, group_start_.data());
+      std::fill(group_alpha_.begin(), group_alpha_.end(), 1.0);
+      group_done_.assign(num_groups, 0);
+      int32_t pending = num_groups;
+      while (pending > 0) {
+        parallel_for(n, [&](int64_t begin, int64_t end) {
+          for (int64_t i = begin; i < end; ++i) {
+            const int32_t g = group_of_vertex_[i / 3];
+            trial_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
+          }
+        }, 8192);
+        potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+        for (int32_t k = 0; k < num_groups; ++k) {
+          if (group_done_[k]) continue;
+          const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
+          if (group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise) {
+            group_done_[k] = 1;
+            --pending;
+            continue;
+          }
+          group_alpha_[k] *= 0.5;
+          if (group_alpha_[k] < kMinStepLength) {
+            result.status = StepStatus::line_search_failed;
+            result.message = format("line search found no decrease along the Newton direction "
+                                    "(increment %.3g m/s, energy %.6g)", result.increment, group_start_[k]);
+            return result;
+          }
         }
       }
     }
     x.swap(trial_);
-    energy = trial_energy;
-    if (potential_.end_iteration(x.data())) energy = potential_.energy(x.data());
+    if (potential_.end_iteration(x.data())) unfreeze_contacts();
   }
   result.status = StepStatus::max_iterations;
   result.message = format("Newton did not converge in the iteration limit (last increment "
                           "%.3g m/s, tolerance %.3g m/s)", result.increment, settings.tolerance);
-  result.energy = energy;
   return result;
 }
 

@@ -1,24 +1,38 @@
 // Projected Newton on the incremental potential with a CCD-capped backtracking (Armijo) line
-// search (DESIGN.md section 5).
+// search (DESIGN.md section 5), solved island by island.
 //
 // Per iteration: gradient and PSD-projected Hessian (parallel, deterministic), Dirichlet DOFs
-// eliminated (their rows and columns become identity, their gradient zero), CHOLMOD numeric
-// factorisation (the symbolic analysis is redone only when contact changed the pattern),
-// direction p = -H^-1 g. Converged when the increment in velocity units, max|p| / dt, is below
-// the tolerance. Otherwise the step length starts at the largest collision-free fraction of p
-// (continuous collision detection) and halves until the energy decreases enough; with contact
-// every trial point is intersection-free and its barrier is evaluated over the pairs close to the
-// whole segment. A failure is returned as a StepStatus with a sentence saying why; the solver
+// eliminated (their rows and columns become identity, their gradient zero). The system then
+// splits into islands (islands.hpp): groups of vertices that no tet, joint or contact couples to
+// each other. Each island gets its own factorisation (island_system.hpp: dense, simplicial or
+// supernodal CHOLMOD, its symbolic analysis kept while its pattern holds), its own direction
+// p = -H^-1 g and its own convergence test: converged when max|p| / dt is below the tolerance.
+// A converged island stops moving and is not factorised again while it stays the same island
+// and the barrier stiffness does not change; the solve is over when every island has converged.
+// Because the potential is a sum over islands, this is exactly Newton on the whole system with
+// the converged parts frozen, and a body falling alone converges in one or two iterations even
+// while a pile next to it needs thirty.
+//
+// The step length is capped per group of islands: the CCD sweep's candidate pairs join islands
+// that might meet along the step, and each group takes the largest collision-free fraction of its
+// own motion (one global cap would let the closest impact of the scene slow every body), then
+// backtracks on its own until its own part of the energy decreases enough (Armijo). Every trial
+// point is intersection-free and its barrier is evaluated over the pairs close to the whole
+// segment. A failure is returned as a StepStatus with a sentence saying why; the solver
 // never accepts a step it could not finish.
 #pragma once
 
 #include "engine/incremental_potential.hpp"
 #include "engine/model.hpp"
-#include "engine/solver/cholmod_solver.hpp"
+#include "engine/solver/island_system.hpp"
+#include "engine/solver/islands.hpp"
 #include "engine/solver/step_status.hpp"
 #include "engine/step_profile.hpp"
 
+#include <cstdint>
+#include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace nexdyn {
@@ -32,9 +46,9 @@ struct NewtonSettings {
 struct NewtonResult {
   StepStatus status = StepStatus::ok;
   int iterations = 0;        // linear solves
-  int analyses = 0;          // symbolic factorisations (pattern changes)
-  double increment = 0.0;    // last max|p| / dt [m/s]
-  double energy = 0.0;       // E at the returned x
+  int analyses = 0;          // symbolic factorisations of islands (pattern changes)
+  int64_t island_solves = 0; // island factorisations, summed over iterations
+  double increment = 0.0;    // largest max|p| / dt of the last iteration's islands [m/s]
   std::string message;       // why it failed; empty when ok
 };
 
@@ -53,21 +67,58 @@ class NewtonSolver {
   // again; for kinematic vertices once they are on their targets (engine/kinematic_targets.hpp).
   void hold(const std::vector<int32_t>& vertices, bool held);
 
+  // Re-solving after a change that touches only some vertices (a new friction lag): the next
+  // solve keeps every island that converged in the last one frozen, except those thawed here
+  // (the islands holding a vertex of these stencils, num x 4 vertex ids, -1 = none).
+  void thaw(const std::vector<int32_t>& stencils);
+  void keep_converged_next_solve() { keep_converged_ = true; }
+
  private:
   void eliminate_dirichlet(double* grad, double* values) const;
-  // (Re)does the symbolic analysis and the Dirichlet bookkeeping for the potential's pattern.
-  void analyze_pattern();
   // The value indices of constrained rows and columns, from constrained_dof_.
   void collect_constrained_values();
+  // The cached system of island i (created on first sight; its pattern brought up to date).
+  IslandSystem& island_system(int32_t i);
+  // Factorises and solves the active islands: direction_ = -H^-1 grad_ on their DOFs. Returns
+  // the index in active_ of the first island that failed, or -1.
+  int64_t solve_islands(int& analyses);
+  // Convergence bookkeeping: a converged island's vertices share a token (islands.hpp numbers
+  // change from iteration to iteration; tokens say "this exact island converged").
+  bool frozen(int32_t island) const;
+  void mark_converged(int32_t island);
+  void unfreeze_contacts();
+  // subset_ = the vertices of the active islands and the tets that touch them.
+  void update_subset();
 
   const Model& model_;
   IncrementalPotential& potential_;
-  CholmodSolver cholmod_;
   StepProfile* profile_ = nullptr;
   int64_t analyzed_version_ = -1;
   std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
   std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
   std::vector<double> grad_, direction_, values_, trial_;
+
+  Islands islands_;
+  // Island systems by a hash of their vertex list (collisions keep a short list), evicted when
+  // unused for a whole solve.
+  std::unordered_map<uint64_t, std::vector<std::unique_ptr<IslandSystem>>> systems_;
+  int64_t solve_count_ = 0;
+  bool keep_converged_ = false;
+  std::vector<int32_t> active_;               // islands solved this iteration
+  std::vector<uint8_t> vertex_active_;        // (num_vertices) in an active island
+  ActiveSubset subset_;                       // what gradient_hessian assembles
+  std::vector<IslandSystem*> active_system_;  // (active_) their systems
+  std::vector<uint8_t> active_ok_;            // (active_) factorisation succeeded
+  std::vector<int32_t> vertex_token_;         // (num_vertices) 0 = not converged
+  std::vector<int32_t> token_size_;           // (tokens) vertices of the island that converged
+  DisjointSets groups_;                       // islands joined by the sweep's candidate pairs
+  std::vector<uint8_t> island_moves_;         // (islands) has a direction this iteration
+  std::vector<uint8_t> vertex_moves_;         // (num_vertices) in such an island
+  std::vector<int32_t> group_of_island_;      // (islands) -1 = does not move
+  std::vector<int32_t> group_of_vertex_;      // (num_vertices) -1 = does not move
+  // (groups) step length, slope g.p, energies at x and at the trial point, accepted
+  std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
+  std::vector<uint8_t> group_done_;
 };
 
 }  // namespace nexdyn

@@ -1,0 +1,77 @@
+// One island's linear system (see island_system.hpp).
+#include "engine/solver/island_system.hpp"
+
+#include <utility>
+
+namespace nexdyn {
+
+IslandSystem::IslandSystem(std::vector<int32_t> vertices) : vertices_(std::move(vertices)) {}
+
+bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, const int32_t* island_of,
+                                  const int32_t* local_index, int32_t island) {
+  if (version == pattern_version_) return false;
+  pattern_version_ = version;
+  const int64_t n = num_dofs();
+  std::vector<int64_t> col_ptr(n + 1, 0), row_idx;
+  value_source_.clear();
+  for (size_t l = 0; l < vertices_.size(); ++l)
+    for (int d = 0; d < 3; ++d) {
+      const int64_t c = 3 * int64_t{vertices_[l]} + d;
+      for (int64_t k = global.col_ptr[c]; k < global.col_ptr[c + 1]; ++k) {
+        const int64_t r = global.row_idx[k];
+        const int32_t rv = static_cast<int32_t>(r / 3);
+        // The global pattern may keep contact blocks of pairs that are no longer in contact
+        // (stored zeros, contact_pattern.hpp); those between islands are dropped here.
+        if (island_of[rv] != island) continue;
+        row_idx.push_back(3 * int64_t{local_index[rv]} + r % 3);
+        value_source_.push_back(k);
+      }
+      col_ptr[3 * l + d + 1] = static_cast<int64_t>(row_idx.size());
+    }
+  values_.resize(row_idx.size());
+  rhs_.resize(n);
+  out_.resize(n);
+  if (col_ptr == col_ptr_ && row_idx == row_idx_) return false;
+  col_ptr_ = std::move(col_ptr);
+  row_idx_ = std::move(row_idx);
+  if (n <= kDenseDofs) {
+    dense_.resize(n, n);
+    return true;
+  }
+  if (!cholmod_) cholmod_ = std::make_unique<CholmodSolver>(/*supernodal=*/n > kSimplicialDofs);
+  cholmod_->analyze(n, col_ptr_.data(), row_idx_.data());
+  return true;
+}
+
+bool IslandSystem::factorize(const double* global_values) {
+  for (size_t k = 0; k < values_.size(); ++k) values_[k] = global_values[value_source_[k]];
+  if (cholmod_) {
+    if (cholmod_->factorize(values_.data())) return true;
+    error_ = cholmod_->error();
+    return false;
+  }
+  const int64_t n = num_dofs();
+  dense_.setZero();
+  for (int64_t c = 0; c < n; ++c)
+    for (int64_t k = col_ptr_[c]; k < col_ptr_[c + 1]; ++k) dense_(row_idx_[k], c) = values_[k];
+  llt_.compute(dense_);
+  if (llt_.info() == Eigen::Success) return true;
+  error_ = "matrix not positive definite (dense island of " + std::to_string(n) + " DOFs)";
+  return false;
+}
+
+void IslandSystem::solve(const double* global_rhs, double* global_out) {
+  for (size_t l = 0; l < vertices_.size(); ++l)
+    for (int d = 0; d < 3; ++d) rhs_[3 * l + d] = global_rhs[3 * int64_t{vertices_[l]} + d];
+  if (cholmod_) {
+    cholmod_->solve(rhs_.data(), out_.data());
+  } else {
+    Eigen::Map<Eigen::VectorXd> b(rhs_.data(), num_dofs());
+    llt_.solveInPlace(b);
+    out_.swap(rhs_);
+  }
+  for (size_t l = 0; l < vertices_.size(); ++l)
+    for (int d = 0; d < 3; ++d) global_out[3 * int64_t{vertices_[l]} + d] = out_[3 * l + d];
+}
+
+}  // namespace nexdyn

@@ -1,0 +1,68 @@
+// One island's linear system: its rows and columns of the Newton matrix, factorised on their own.
+//
+// The global matrix is assembled as before (one pattern, one gather); an island copies its values
+// out through a table built once per global pattern, so islands cost nothing to assemble and
+// keep their symbolic analysis for as long as their own block of the pattern is unchanged (a
+// body falling alone keeps its analysis for the whole run).
+//
+// Small islands are factorised dense (a 27-vertex box is an 81 x 81 matrix: a dense Cholesky is
+// faster than any sparse bookkeeping). Larger ones go to CHOLMOD: simplicial up to a size where
+// supernodes pay off, supernodal beyond. Supernodal CHOLMOD calls the BLAS, and Debian's serial
+// OpenBLAS keeps unlocked global buffers, so those islands must never be factorised or solved
+// concurrently with each other (uses_blas(); newton.cpp runs them one at a time). Dense and
+// simplicial islands share nothing and run in parallel.
+#pragma once
+
+#include "engine/solver/cholmod_solver.hpp"
+#include "engine/solver/hessian_pattern.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace nexdyn {
+
+class IslandSystem {
+ public:
+  // Islands up to this many DOFs are dense; up to kSimplicialDofs simplicial CHOLMOD.
+  static constexpr int64_t kDenseDofs = 150;
+  static constexpr int64_t kSimplicialDofs = 3000;
+
+  // vertices: the island's, increasing.
+  explicit IslandSystem(std::vector<int32_t> vertices);
+
+  const std::vector<int32_t>& vertices() const { return vertices_; }
+  int64_t num_dofs() const { return 3 * static_cast<int64_t>(vertices_.size()); }
+  bool uses_blas() const { return cholmod_ && num_dofs() > kSimplicialDofs; }
+
+  // Builds the value table for the global pattern of this version; local_index[v] is v's place
+  // in the island's vertex list and island_of[v] its island (this one is `island`). Redoes the
+  // symbolic analysis only when the island's block of the pattern changed; returns true then.
+  bool update_pattern(const CscPattern& global, int64_t version, const int32_t* island_of,
+                      const int32_t* local_index, int32_t island);
+
+  // Factorises the island's block of the global values. false: not positive definite.
+  bool factorize(const double* global_values);
+  // out = H^-1 rhs on the island's DOFs (other entries of out are left alone).
+  void solve(const double* global_rhs, double* global_out);
+  const std::string& error() const { return error_; }
+
+  int64_t last_used = 0;  // solve counter of the last use (newton.cpp evicts stale islands)
+
+ private:
+  std::vector<int32_t> vertices_;
+  int64_t pattern_version_ = -1;
+  std::vector<int64_t> col_ptr_, row_idx_;  // the island's upper triangle, local DOFs
+  std::vector<int64_t> value_source_;       // (local nnz) index into the global values
+  std::vector<double> values_, rhs_, out_;
+  Eigen::MatrixXd dense_;
+  Eigen::LLT<Eigen::MatrixXd, Eigen::Upper> llt_;
+  std::unique_ptr<CholmodSolver> cholmod_;
+  std::string error_;
+};
+
+}  // namespace nexdyn
