@@ -112,6 +112,8 @@ class IncrementalPotential {
     return contact_pattern_ ? contact_pattern_->pattern() : static_cast<const CscPattern&>(elastic_.pattern());
   }
   int64_t pattern_version() const { return contact_pattern_ ? contact_pattern_->version() : 0; }
+  // The tets' and joints' part of the pattern alone (constant for a run).
+  const CscPattern& elastic_pattern() const { return elastic_.pattern(); }
 
   double barrier_stiffness() const { return kappa_; }
   // a -= (s_c / s) M^-1 f_c(x) on free vertices: what update_implicit put into a_{n+1} for the

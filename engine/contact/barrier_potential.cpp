@@ -120,8 +120,13 @@ BarrierPotential::BarrierPotential(const Model& model, double dhat)
 }
 
 void BarrierPotential::find_candidates(const double* x0, const double* x1) {
+  const int64_t n = model_.num_dofs();
+  // A static search at the positions of the last one (friction lags, then the solve) is a no-op.
+  if (!x1 && static_search_ && std::equal(x0, x0 + n, static_x_.begin())) return;
   ProfileScope scope(profile_, StepPhase::broad_phase);
   find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
+  static_search_ = x1 == nullptr;
+  if (static_search_) static_x_.assign(x0, x0 + n);
 }
 
 // ---- distances and energy -------------------------------------------------------------------
@@ -722,6 +727,7 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   }, 8192);
   if (!moving) return find_candidates(x, x1_.data());
   ProfileScope broad(profile_, StepPhase::broad_phase);
+  static_search_ = false;
   // Pairs of vertices that stay put keep their candidates: none of them moved since the last
   // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.

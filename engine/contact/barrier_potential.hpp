@@ -138,6 +138,8 @@ class BarrierPotential {
   StepProfile* profile_ = nullptr;
   ContactCandidates candidates_;
   std::vector<double> x1_;  // (3n) end of the swept motion
+  bool static_search_ = false;     // candidates_ come from find_candidates(static_x_, nullptr)
+  std::vector<double> static_x_;   // (3n)
   ContactCandidates fresh_;        // workspaces of sweep() with moving vertices
   std::vector<IndexPair> kept_;
   // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)

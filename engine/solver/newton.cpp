@@ -16,6 +16,8 @@ namespace {
 // Armijo sufficient-decrease constant and the smallest step length tried before giving up.
 constexpr double kArmijo = 1e-4;
 constexpr double kMinStepLength = 1e-10;
+// Solves a small island's cached system outlives its last use by.
+constexpr int64_t kKeepIslandSolves = 64;
 
 std::string format(const char* fmt, double a, double b = 0.0) {
   char buf[256];
@@ -25,7 +27,7 @@ std::string format(const char* fmt, double a, double b = 0.0) {
 }  // namespace
 
 NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
-    : model_(model), potential_(potential), islands_(potential.pattern(), model.num_vertices) {
+    : model_(model), potential_(potential), islands_(potential.elastic_pattern(), model.num_vertices) {
   const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
   for (int32_t v = 0; v < model.num_vertices; ++v)
@@ -177,13 +179,19 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
   const int64_t n = static_cast<int64_t>(x.size());
-  // Forget the islands that went unused for a whole solve, and every convergence mark (unless
+  // Forget the islands that went unused for kKeepIslandSolves solves (a frozen island is not looked
+  // up, so a shorter memory would throw away the analyses of bodies that merely rest; big systems
+  // hold big factors and rarely recur, so they go after one), and every convergence mark (unless
   // told to keep them).
   ++solve_count_;
   for (auto it = systems_.begin(); it != systems_.end();) {
     auto& bucket = it->second;
     bucket.erase(std::remove_if(bucket.begin(), bucket.end(),
-                                [&](const auto& s) { return s->last_used < solve_count_ - 1; }),
+                                [&](const auto& s) {
+                                  const int64_t keep =
+                                      s->num_dofs() <= IslandSystem::kSimplicialDofs ? kKeepIslandSolves : 1;
+                                  return s->last_used < solve_count_ - keep;
+                                }),
                  bucket.end());
     it = bucket.empty() ? systems_.erase(it) : std::next(it);
   }
