@@ -1,9 +1,13 @@
 // Contact candidates (engine/contact/candidates) against the O(n^2) reference on the same boxes,
 // static and swept, plus the property the co-moving frame of same-body pairs must keep: every
 // pair that comes within 2 r at some time of the motion is a candidate of the sweep. Also the
-// scans of bvh/blocked_boxes.hpp the broad phase is built on.
+// scans of bvh/blocked_boxes.hpp the broad phase is built on, and the searches of a few moving
+// bodies (a `moving` mask, BarrierPotential::sweep) against the full search.
 #include "engine/contact/candidates.hpp"
 #include "bvh/blocked_boxes.hpp"
+#include "engine/contact/barrier_potential.hpp"
+#include "kernels/distance/edge_edge_distance.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -11,6 +15,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <iterator>
 #include <random>
 #include <string>
 
@@ -218,4 +223,203 @@ TEST_CASE("a blocked box list scan reports the overlapping boxes from an index o
       }
   }
   CHECK(hits > 1000);
+}
+
+// ---- searches of a few moving bodies (the island solver's CCD sweep, solver/newton.cpp) ---------
+
+namespace {
+
+// Whether a candidate pair of each list has a vertex with mask[v] != 0.
+struct PairVertices {
+  const Model& m;
+  bool vertex_triangle(const IndexPair& p, const std::vector<uint8_t>& mask) const {
+    const int32_t* t = &m.surface_triangles[3 * int64_t{p.second}];
+    return mask[p.first] || mask[t[0]] || mask[t[1]] || mask[t[2]];
+  }
+  bool edge_edge(const IndexPair& p, const std::vector<uint8_t>& mask) const {
+    const int32_t* a = &m.surface_edges[2 * int64_t{p.first}];
+    const int32_t* b = &m.surface_edges[2 * int64_t{p.second}];
+    return mask[a[0]] || mask[a[1]] || mask[b[0]] || mask[b[1]];
+  }
+  bool vertex_plane(const IndexPair& p, const std::vector<uint8_t>& mask) const { return mask[p.first] != 0; }
+};
+
+// The pairs of c with (touching = true) or without a vertex in the mask, in c's order.
+ContactCandidates filtered(const Model& m, const ContactCandidates& c, const std::vector<uint8_t>& mask, bool touching) {
+  const PairVertices pv{m};
+  ContactCandidates out;
+  for (const IndexPair& p : c.vertex_triangle)
+    if (pv.vertex_triangle(p, mask) == touching) out.vertex_triangle.push_back(p);
+  for (const IndexPair& p : c.edge_edge)
+    if (pv.edge_edge(p, mask) == touching) out.edge_edge.push_back(p);
+  for (const IndexPair& p : c.vertex_plane)
+    if (pv.vertex_plane(p, mask) == touching) out.vertex_plane.push_back(p);
+  return out;
+}
+
+// The free (not held) vertices of these bodies.
+std::vector<uint8_t> free_vertices_of(const Model& m, std::initializer_list<int32_t> bodies) {
+  std::vector<uint8_t> mask(m.num_vertices, 0);
+  for (int32_t b : bodies)
+    for (int32_t v = m.bodies[b].vertex_begin; v < m.bodies[b].vertex_begin + m.bodies[b].vertex_count; ++v)
+      mask[v] = m.dirichlet[v] < 0;
+  return mask;
+}
+
+bool strictly_increasing(const std::vector<IndexPair>& pairs) {
+  return std::adjacent_find(pairs.begin(), pairs.end(), [](const IndexPair& a, const IndexPair& b) { return !(a < b); }) ==
+         pairs.end();
+}
+
+std::vector<IndexPair> difference(const std::vector<IndexPair>& a, const std::vector<IndexPair>& b) {
+  std::vector<IndexPair> out;
+  std::set_difference(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("contact candidates with a moving mask are the full search's pairs with a moving vertex") {
+  const Scene scene = many_bodies();
+  const Model& model = scene.model;
+  REQUIRE(model.bodies.size() == 8);  // 6 boxes, the partly held plate, the bowl
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 21);
+  // Bodies 0, 3, 4 and the plate move; the others stay (x1 = x0 there).
+  const std::vector<uint8_t> movers = free_vertices_of(model, {0, 3, 4, 6});
+  const std::vector<double> everyone_moved = moved(model, x0, 22);
+  std::vector<double> x1 = x0;
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (movers[v])
+      for (int d = 0; d < 3; ++d) x1[3 * v + d] = everyone_moved[3 * v + d];
+  // Masks: the moving bodies; a random subset of their free vertices; nothing.
+  std::mt19937 rng(23);
+  std::vector<uint8_t> some_vertices = movers;
+  for (uint8_t& m : some_vertices) m = m && (rng() % 3 == 0);
+  const std::vector<uint8_t>& some = some_vertices;
+  const std::vector<uint8_t> nothing(model.num_vertices, 0);
+  for (const double* end : {static_cast<const double*>(nullptr), static_cast<const double*>(x1.data())}) {
+    for (double inflation : {0.005, 0.05}) {
+      ContactCandidates full;
+      find_contact_candidates(model, x0.data(), end, inflation, full);
+      for (const std::vector<uint8_t>* mask : {&movers, &some, &nothing}) {
+        CAPTURE(end != nullptr);
+        CAPTURE(inflation);
+        CAPTURE(mask == &movers ? "moving bodies" : mask == &some ? "some vertices" : "nothing");
+        const ContactCandidates expected = filtered(model, full, *mask, true);
+        if (mask == &nothing) {
+          CHECK(expected.size() == 0);
+        } else {
+          CHECK(!expected.vertex_triangle.empty());
+          CHECK(!expected.edge_edge.empty());
+          CHECK(!expected.vertex_plane.empty());
+          CHECK(expected.size() < full.size());  // the mask does leave pairs out
+        }
+        ContactCandidates brute;
+        find_contact_candidates_brute_force(model, x0.data(), end, inflation, brute, mask->data());
+        check_equal(brute, expected);
+        for (int threads : {1, 2}) {
+          CAPTURE(threads);
+          tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+          ContactCandidates fast;
+          find_contact_candidates(model, x0.data(), end, inflation, fast, mask->data());
+          check_equal(fast, expected);
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("a barrier sweep with a moving mask keeps the still pairs and searches the moving ones") {
+  // The previous search covers x0 -> x_prev. Body 4 swept far and is back at its start; the other
+  // still bodies are half way along their (small) motions: none of them has moved since that
+  // search covered where it is. Bodies 0, 2 and the plate then sweep x -> x + p.
+  const Scene scene = many_bodies();
+  const Model& model = scene.model;
+  const double dhat = 0.01;
+  const std::vector<uint8_t> moving = free_vertices_of(model, {0, 2, 6});
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 5e-4, 31);
+  std::vector<double> x_prev = test::perturbed(x0, 5e-4, 32), x = x0, p(model.num_dofs(), 0.0);
+  std::mt19937 rng(33);
+  std::uniform_real_distribution<double> u(-1.5e-3, 1.5e-3);
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    const Eigen::Vector3d shift = b == 4 ? Eigen::Vector3d(-0.03, 0.15, 0.02) : Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d step(u(rng), u(rng), u(rng));
+    const double t = b == 4 ? 0.0 : 0.5;
+    const BodyRange& body = model.bodies[b];
+    for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v)
+      for (int d = 0; d < 3; ++d) {
+        const int64_t i = 3 * int64_t{v} + d;
+        if (model.dirichlet[v] >= 0) {
+          x_prev[i] = x0[i];
+          continue;
+        }
+        x_prev[i] += shift[d];
+        x[i] = x0[i] + t * (x_prev[i] - x0[i]);
+        if (moving[v]) p[i] = step[d] + 0.3 * u(rng);
+      }
+  }
+
+  BarrierPotential contact(model, dhat);
+  contact.find_candidates(x0.data(), x_prev.data());
+  const ContactCandidates previous = contact.candidates();
+  contact.sweep(x.data(), p.data(), moving.data());
+  const ContactCandidates& masked = contact.candidates();
+  BarrierPotential reference(model, dhat);
+  reference.sweep(x.data(), p.data());
+  const ContactCandidates& full = reference.candidates();
+
+  // Exactly: the pairs with a moving vertex are the full sweep's, the others the previous search's.
+  const ContactCandidates fresh = filtered(model, masked, moving, true), kept = filtered(model, masked, moving, false);
+  check_equal(fresh, filtered(model, full, moving, true));
+  check_equal(kept, filtered(model, previous, moving, false));
+  CHECK(!fresh.vertex_triangle.empty());
+  CHECK(!fresh.edge_edge.empty());
+  CHECK(!fresh.vertex_plane.empty());
+  CHECK(!kept.vertex_triangle.empty());
+  CHECK(!kept.edge_edge.empty());
+  CHECK(!kept.vertex_plane.empty());
+
+  // So the lists stay sorted, nothing of the full sweep is missing, and what the full sweep does
+  // not have are still pairs of the previous search, farther than dhat apart at x (and, still, on
+  // the whole sweep): they cannot change an energy, a gradient or a CCD bound.
+  const double dhat2 = dhat * dhat;
+  auto pt = [&](int32_t v) { return Eigen::Vector3d::Map(&x[3 * int64_t{v}]); };
+  const std::vector<IndexPair> vt = difference(masked.vertex_triangle, full.vertex_triangle);
+  const std::vector<IndexPair> ee = difference(masked.edge_edge, full.edge_edge);
+  const std::vector<IndexPair> vp = difference(masked.vertex_plane, full.vertex_plane);
+  CHECK(strictly_increasing(masked.vertex_triangle));
+  CHECK(strictly_increasing(masked.edge_edge));
+  CHECK(strictly_increasing(masked.vertex_plane));
+  CHECK(masked.vertex_triangle.size() == full.vertex_triangle.size() + vt.size());
+  CHECK(masked.edge_edge.size() == full.edge_edge.size() + ee.size());
+  CHECK(masked.vertex_plane.size() == full.vertex_plane.size() + vp.size());
+  for (const IndexPair& pr : vt) {
+    const int32_t* t = &model.surface_triangles[3 * int64_t{pr.second}];
+    CHECK(point_triangle_distance(pt(pr.first), pt(t[0]), pt(t[1]), pt(t[2])) > dhat2);
+    CHECK(contains(kept.vertex_triangle, pr));
+  }
+  for (const IndexPair& pr : ee) {
+    const int32_t* a = &model.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* b = &model.surface_edges[2 * int64_t{pr.second}];
+    CHECK(edge_edge_distance(pt(a[0]), pt(a[1]), pt(b[0]), pt(b[1])) > dhat2);
+    CHECK(contains(kept.edge_edge, pr));
+  }
+  for (const IndexPair& pr : vp) {
+    const ObstaclePlane& plane = model.obstacle_planes[pr.second];
+    CHECK((pt(pr.first) - plane.point).dot(plane.normal) > dhat);
+    CHECK(contains(kept.vertex_plane, pr));
+  }
+  CHECK(vt.size() > 0);  // body 4's long sweep left pairs with body 5 that are out of range now
+  CHECK(ee.size() > 0);
+
+  // The barrier along the sweep is the full sweep's.
+  for (double t : {0.0, 0.5, 1.0}) {
+    CAPTURE(t);
+    std::vector<double> y(x.size());
+    for (size_t i = 0; i < y.size(); ++i) y[i] = x[i] + t * p[i];
+    const double a = contact.energy(y.data()), b = reference.energy(y.data());
+    REQUIRE(std::isfinite(b));
+    CHECK(b > 0.0);
+    CHECK(std::abs(a - b) <= 1e-12 * b);
+  }
 }

@@ -1,0 +1,335 @@
+// Grouped energies (group_energy of ElasticAssembly, BarrierPotential, FrictionPotential and
+// IncrementalPotential), which the island solver's line search tests group by group
+// (engine/solver/newton.cpp): with every vertex in group 0 they add up to energy(); with groups
+// along bodies, each group's total is the energy of the terms touching its vertices, summed
+// element by element from the kernels; terms of vertices in group -1 contribute nothing.
+#include "engine/contact/barrier_potential.hpp"
+#include "engine/contact/friction_potential.hpp"
+#include "engine/elastic_assembly.hpp"
+#include "engine/incremental_potential.hpp"
+#include "kernels/barrier/barrier.hpp"
+#include "kernels/distance/edge_edge_distance.hpp"
+#include "kernels/distance/edge_edge_mollifier.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
+#include "kernels/elasticity/elasticity.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+using namespace nexdyn;
+
+namespace {
+
+constexpr double kDhat = 0.05;
+constexpr double kDt = 0.01;
+constexpr double kKappa = 1e3;
+
+// Body 1 rests 0.01 m on body 0, which is 0.02 m over a ground plane; bodies 2 and 3 stand alone
+// 0.02 m over the plane, far from the others. Two materials alternate, so the tets form four
+// material batches. With dhat = 0.05 m there are vertex-triangle, edge-edge and vertex-plane
+// contacts, with friction.
+Scene four_bodies_on_ground() {
+  return test::scene_from_json(R"({
+    "gravity": [0, -9.81, 0], "time": { "dt": 0.01 },
+    "contact": { "dhat": 0.05, "friction": 0.4 },
+    "materials": { "a": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 },
+                   "b": { "model": "stvk", "youngs": 3e5, "poisson": 0.2, "density": 500 } },
+    "bodies": [ { "box": { "size": [0.5, 0.5, 0.5], "cells": [2, 2, 2] }, "material": "a" },
+                { "box": { "size": [0.4, 0.4, 0.4], "cells": [2, 1, 2] }, "material": "b",
+                  "translate": [0.03, 0.46, -0.02] },
+                { "box": { "size": [0.3, 0.3, 0.3], "cells": [2, 2, 2] }, "material": "a",
+                  "translate": [1.0, -0.1, 0.0] },
+                { "box": { "size": [0.3, 0.3, 0.3], "cells": [1, 2, 1] }, "material": "b",
+                  "translate": [-1.0, -0.1, 0.0] } ],
+    "obstacles": [ { "plane": { "point": [0, -0.27, 0], "normal": [0, 1, 0] } } ]
+  })", "group_energy_bodies");
+}
+
+Eigen::Vector3d point(const double* x, int32_t v) { return Eigen::Vector3d::Map(x + 3 * int64_t{v}); }
+
+// Group of a term from its vertices: the one group its grouped vertices share (-1: none).
+int32_t term_group(const std::vector<int32_t>& group, std::initializer_list<int32_t> vertices) {
+  int32_t g = -1;
+  for (int32_t v : vertices) {
+    if (v < 0 || group[v] < 0) continue;
+    REQUIRE((g < 0 || g == group[v]));  // the groups of the test never split a term
+    g = group[v];
+  }
+  return g;
+}
+
+// Per-group sums, with slot num_groups for the terms of no group.
+struct Reference {
+  std::vector<double> total;
+  explicit Reference(int32_t num_groups) : total(num_groups + 1, 0.0) {}
+  void add(int32_t g, double e) { total[g < 0 ? total.size() - 1 : g] += e; }
+  double all() const {
+    double s = 0.0;
+    for (double t : total) s += t;
+    return s;
+  }
+};
+
+Reference elastic_reference(const Model& m, const double* x, const std::vector<int32_t>& group, int32_t num_groups) {
+  Reference ref(num_groups);
+  for (int32_t t = 0; t < m.num_tets; ++t) {
+    const int32_t* tet = &m.tets[4 * int64_t{t}];
+    Eigen::Matrix<double, 3, 4> xt;
+    for (int c = 0; c < 4; ++c) xt.col(c) = point(x, tet[c]);
+    const Material& mat = m.materials[m.tet_material[t]];
+    ref.add(term_group(group, {tet[0], tet[1], tet[2], tet[3]}),
+            tet_energy(mat.model, xt, Eigen::Matrix3d::Map(&m.Dm_inv[9 * int64_t{t}]), m.rest_volume[t], mat.lame));
+  }
+  return ref;
+}
+
+// The barrier of every candidate pair on its own, from the distance kernels.
+Reference barrier_reference(const Model& m, const ContactCandidates& c, const double* x,
+                            const std::vector<int32_t>& group, int32_t num_groups) {
+  const double dhat2 = kDhat * kDhat;
+  const double* r = m.rest_positions.data();
+  Reference ref(num_groups);
+  for (const IndexPair& pair : c.vertex_triangle) {
+    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+    const double d = point_triangle_distance(point(x, pair.first), point(x, t[0]), point(x, t[1]), point(x, t[2]));
+    ref.add(term_group(group, {pair.first, t[0], t[1], t[2]}), d < dhat2 ? barrier(d, dhat2) : 0.0);
+  }
+  for (const IndexPair& pair : c.edge_edge) {
+    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+    const Eigen::Vector3d a0 = point(x, ea[0]), a1 = point(x, ea[1]), b0 = point(x, eb[0]), b1 = point(x, eb[1]);
+    const double d = edge_edge_distance(a0, a1, b0, b1);
+    double e = 0.0;
+    if (d < dhat2) {
+      const double eps_x = edge_edge_mollifier_threshold(point(r, ea[0]), point(r, ea[1]), point(r, eb[0]), point(r, eb[1]));
+      e = barrier(d, dhat2) * edge_edge_mollifier(a0, a1, b0, b1, eps_x);
+    }
+    ref.add(term_group(group, {ea[0], ea[1], eb[0], eb[1]}), e);
+  }
+  for (const IndexPair& pair : c.vertex_plane) {
+    const ObstaclePlane& plane = m.obstacle_planes[pair.second];
+    const double s = (point(x, pair.first) - plane.point).dot(plane.normal);
+    const double d = s > 0.0 ? s * s : 0.0;
+    ref.add(term_group(group, {pair.first}), d < dhat2 ? barrier(d, dhat2) : 0.0);
+  }
+  return ref;
+}
+
+bool close(double a, double b, double tolerance = 1e-12) {
+  return std::abs(a - b) <= tolerance * std::max(std::abs(a), std::abs(b));
+}
+
+// Vertex groups along bodies: body_group[b] for every vertex of body b.
+std::vector<int32_t> groups_of_bodies(const Model& m, std::initializer_list<int32_t> body_group) {
+  std::vector<int32_t> group(m.num_vertices);
+  const std::vector<int32_t> per_body(body_group);
+  for (int32_t v = 0; v < m.num_vertices; ++v) group[v] = per_body[m.vertex_body[v]];
+  return group;
+}
+
+// The friction, at x, of the contacts touching the vertices of `mask` alone: lagged at x_lag as
+// the tests lag the full one, from a barrier whose candidates are only the pairs with a vertex in
+// the mask (a sweep of no motion from an empty candidate list searches exactly those).
+double friction_touching(const Model& model, const std::vector<uint8_t>& mask, const std::vector<double>& x_lag,
+                         const std::vector<double>& x_start, double kappa, const std::vector<double>& x,
+                         const ContactCandidates* all = nullptr) {
+  BarrierPotential part(model, kDhat);
+  const std::vector<double> no_motion(model.num_dofs(), 0.0);
+  part.sweep(x_lag.data(), no_motion.data(), mask.data());
+  if (all) {
+    // Premise: those are the pairs of the full list with a vertex in the mask.
+    int64_t touching = 0;
+    for (const IndexPair& p : all->vertex_triangle) {
+      const int32_t* t = &model.surface_triangles[3 * int64_t{p.second}];
+      touching += mask[p.first] | mask[t[0]] | mask[t[1]] | mask[t[2]];
+    }
+    for (const IndexPair& p : all->edge_edge) {
+      const int32_t* a = &model.surface_edges[2 * int64_t{p.first}];
+      const int32_t* b = &model.surface_edges[2 * int64_t{p.second}];
+      touching += mask[a[0]] | mask[a[1]] | mask[b[0]] | mask[b[1]];
+    }
+    for (const IndexPair& p : all->vertex_plane) touching += mask[p.first];
+    CHECK(part.candidates().size() == touching);
+  }
+  part.build_active_set(x_lag.data());
+  FrictionPotential f(model, FrictionTable(2, {0.4, 0.4}), 0.1);
+  f.lag(part, x_lag.data(), kappa, x_start.data(), kDt);
+  return f.energy(x.data());
+}
+
+// The contact state of the tests: candidates and active set at x_lag, friction lagged there with
+// kKappa and a step start x_start, and an evaluation point x; both x_start and x near x_lag.
+struct ContactSetup {
+  Scene scene = four_bodies_on_ground();
+  const Model& model = scene.model;
+  std::vector<double> x_lag = test::perturbed(model.rest_positions, 2e-3, 3);
+  std::vector<double> x_start = test::perturbed(x_lag, 2e-3, 4);
+  std::vector<double> x = test::perturbed(x_lag, 2e-3, 5);
+  BarrierPotential contact{model, kDhat};
+  FrictionPotential friction{model, FrictionTable(2, {0.4, 0.4}), 0.1};
+
+  ContactSetup() {
+    contact.find_candidates(x_lag.data(), nullptr);
+    contact.build_active_set(x_lag.data());
+    friction.lag(contact, x_lag.data(), kKappa, x_start.data(), kDt);
+  }
+
+  double friction_touching(const std::vector<uint8_t>& mask) const {
+    return ::friction_touching(model, mask, x_lag, x_start, kKappa, x, &contact.candidates());
+  }
+  std::vector<uint8_t> mask_of(const std::vector<int32_t>& group, int32_t g) const {
+    std::vector<uint8_t> mask(model.num_vertices);
+    for (int32_t v = 0; v < model.num_vertices; ++v) mask[v] = group[v] == g;
+    return mask;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("group energies with every vertex in group 0 add up to energy()") {
+  ContactSetup s;
+  const Model& model = s.model;
+  const ElasticAssembly elastic(model);
+  REQUIRE(model.material_batches.size() == 4);
+  REQUIRE(s.contact.candidates().vertex_triangle.size() > 0);
+  REQUIRE(s.contact.candidates().edge_edge.size() > 0);
+  REQUIRE(s.contact.candidates().vertex_plane.size() > 0);
+  REQUIRE(s.friction.num_stencils() > 10);
+  const std::vector<int32_t> zero(model.num_vertices, 0);
+  double e = 0.0, b = 0.0, f = 0.0;
+  elastic.group_energy(s.x.data(), zero.data(), &e);
+  s.contact.group_energy(s.x.data(), zero.data(), &b);
+  s.friction.group_energy(s.x.data(), zero.data(), &f);
+  CHECK(elastic.energy(s.x.data()) > 0.0);
+  CHECK(s.contact.energy(s.x.data()) > 0.0);
+  CHECK(s.friction.energy(s.x.data()) > 0.0);
+  CHECK(close(e, elastic.energy(s.x.data())));
+  CHECK(close(b, s.contact.energy(s.x.data())));
+  CHECK(close(f, s.friction.energy(s.x.data())));
+  // And the element-by-element references agree with energy(), so they can judge the groups.
+  CHECK(close(elastic_reference(model, s.x.data(), zero, 1).all(), elastic.energy(s.x.data())));
+  CHECK(close(barrier_reference(model, s.contact.candidates(), s.x.data(), zero, 1).all(), s.contact.energy(s.x.data())));
+}
+
+TEST_CASE("group energies along bodies: each group totals the terms touching it, group -1 adds nothing") {
+  ContactSetup s;
+  const Model& model = s.model;
+  const ElasticAssembly elastic(model);
+  // Bodies 0 and 1 (in contact) are group 1, body 2 group 0, body 3 moves in no group.
+  const std::vector<int32_t> group = groups_of_bodies(model, {1, 1, 0, -1});
+  const int32_t num_groups = 2;
+  // Totals are added to: start from offsets.
+  const double offset[2] = {0.25, -3.0};
+  auto grouped = [&](auto&& term, const std::vector<double>& x) {
+    std::vector<double> total(offset, offset + 2);
+    term(x.data(), group.data(), total.data());
+    return total;
+  };
+  auto elastic_terms = [&](const double* x, const int32_t* g, double* t) { elastic.group_energy(x, g, t); };
+  auto barrier_terms = [&](const double* x, const int32_t* g, double* t) { s.contact.group_energy(x, g, t); };
+  auto friction_terms = [&](const double* x, const int32_t* g, double* t) { s.friction.group_energy(x, g, t); };
+
+  const std::vector<double> e = grouped(elastic_terms, s.x), b = grouped(barrier_terms, s.x),
+                            f = grouped(friction_terms, s.x);
+  const Reference e_ref = elastic_reference(model, s.x.data(), group, num_groups);
+  const Reference b_ref = barrier_reference(model, s.contact.candidates(), s.x.data(), group, num_groups);
+  for (int32_t g = 0; g < num_groups; ++g) {
+    CAPTURE(g);
+    CHECK(e_ref.total[g] > 0.0);
+    CHECK(b_ref.total[g] > 0.0);
+    CHECK(close(e[g] - offset[g], e_ref.total[g]));
+    CHECK(close(b[g] - offset[g], b_ref.total[g]));
+    const double f_ref = s.friction_touching(s.mask_of(group, g));
+    CHECK(f_ref > 0.0);
+    CHECK(close(f[g] - offset[g], f_ref));
+  }
+  // Body 3 has tets and plane contacts of its own: they are in no group.
+  CHECK(e_ref.total[num_groups] > 0.0);
+  CHECK(b_ref.total[num_groups] > 0.0);
+  CHECK(s.friction_touching(s.mask_of(group, -1)) > 0.0);
+
+  // Moving the vertices of group -1 changes no group's total, not even in the last bit.
+  std::vector<double> moved = s.x;
+  const std::vector<double> jiggle = test::perturbed(s.x, 3e-3, 9);
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (group[v] < 0)
+      for (int d = 0; d < 3; ++d) moved[3 * v + d] = jiggle[3 * v + d];
+  CHECK(s.contact.energy(moved.data()) != s.contact.energy(s.x.data()));
+  CHECK(grouped(elastic_terms, moved) == e);
+  CHECK(grouped(barrier_terms, moved) == b);
+  CHECK(grouped(friction_terms, moved) == f);
+
+  // Every vertex in group -1: nothing is added.
+  const std::vector<int32_t> none(model.num_vertices, -1);
+  auto untouched = [&](auto&& term) {
+    double total[2] = {offset[0], offset[1]};
+    term(s.x.data(), none.data(), total);
+    return total[0] == offset[0] && total[1] == offset[1];
+  };
+  CHECK(untouched(elastic_terms));
+  CHECK(untouched(barrier_terms));
+  CHECK(untouched(friction_terms));
+}
+
+TEST_CASE("incremental potential group energy: the terms of each group, weighted as in energy()") {
+  ContactSetup s;
+  const Model& model = s.model;
+  ElasticAssembly elastic(model);
+  BarrierPotential contact(model, kDhat);
+  IncrementalPotential potential(model, elastic, &contact);
+  const std::vector<double> x_tilde = test::perturbed(s.x_lag, 1e-2, 6);
+  const double scale = 1e-4, contact_scale = 2e-4;
+  potential.begin_step(x_tilde, scale, contact_scale, true);
+  potential.begin_solve(s.x_lag.data());  // candidates at x_lag, the barrier stiffness
+  const double kappa = potential.barrier_stiffness();
+  REQUIRE(kappa > 0.0);
+  contact.build_active_set(s.x_lag.data());
+  FrictionPotential friction(model, FrictionTable(2, {0.4, 0.4}), 0.1);
+  friction.lag(contact, s.x_lag.data(), kappa, s.x_start.data(), kDt);
+  potential.set_friction(&friction);
+  const double* x = s.x.data();
+  REQUIRE(std::isfinite(potential.energy(x)));
+
+  double all = 0.0;
+  const std::vector<int32_t> zero(model.num_vertices, 0);
+  potential.group_energy(x, zero.data(), 1, &all);
+  CHECK(close(all, potential.energy(x)));
+
+  const std::vector<int32_t> group = groups_of_bodies(model, {1, 1, 0, -1});
+  std::vector<double> out = {123.0, 456.0};  // overwritten, not added to
+  potential.group_energy(x, group.data(), 2, out.data());
+  const Reference e_ref = elastic_reference(model, x, group, 2);
+  const Reference b_ref = barrier_reference(model, contact.candidates(), x, group, 2);
+  for (int32_t g = 0; g < 2; ++g) {
+    CAPTURE(g);
+    double inertia_gravity = 0.0;
+    for (int32_t v = 0; v < model.num_vertices; ++v) {
+      if (group[v] != g) continue;
+      const Eigen::Vector3d dx = point(x, v) - point(x_tilde.data(), v);
+      inertia_gravity += model.mass[v] * (0.5 * dx.squaredNorm() - scale * model.gravity.dot(dx));
+    }
+    const double expected = inertia_gravity + scale * e_ref.total[g] +
+                            contact_scale * (kappa * b_ref.total[g] +
+                                             friction_touching(model, s.mask_of(group, g), s.x_lag, s.x_start, kappa, s.x));
+    CHECK(close(out[g], expected));
+  }
+
+  // An inverted tet makes its group's energy infinite and leaves the other group alone: a corner
+  // of a tet of body 2 mirrored through the opposite face.
+  std::vector<double> bad = s.x;
+  const int32_t* tet = &model.tets[4 * int64_t{model.bodies[2].tet_begin}];
+  const Eigen::Vector3d p = point(x, tet[0]), b1 = point(x, tet[1]), b2 = point(x, tet[2]), b3 = point(x, tet[3]);
+  const Eigen::Vector3d normal = (b2 - b1).cross(b3 - b1).normalized();
+  Eigen::Vector3d::Map(&bad[3 * int64_t{tet[0]}]) = p - 2.0 * (p - b1).dot(normal) * normal;
+  REQUIRE(!std::isfinite(potential.energy(bad.data())));
+  std::vector<double> bad_out(2);
+  potential.group_energy(bad.data(), group.data(), 2, bad_out.data());
+  CHECK(std::isinf(bad_out[0]));
+  CHECK(bad_out[1] == out[1]);
+}
