@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libembree-dev
-          libsuitesparse-dev libopenblas0-serial doctest-dev libbenchmark-dev
+          libsuitesparse-dev libopenblas0-pthread doctest-dev libbenchmark-dev
           nlohmann-json3-dev libcli11-dev)
 missing=()
 for p in "${packages[@]}"; do

@@ -2,6 +2,7 @@
 #include "engine/solver/cholmod_solver.hpp"
 
 #include <cholmod.h>
+#include <dlfcn.h>
 #include <omp.h>
 
 #include <cstring>
@@ -31,7 +32,23 @@ cholmod_sparse wrap(int64_t n, const int64_t* col_ptr, const int64_t* row_idx, c
 }
 }  // namespace
 
+bool CholmodSolver::blas_is_thread_safe() {
+  // Looked up at run time: which BLAS libblas.so.3 is depends on the machine's alternatives.
+  static const bool safe = [] {
+    using GetParallel = int (*)();
+    using SetThreads = void (*)(int);
+    const auto get_parallel = reinterpret_cast<GetParallel>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
+    const auto set_threads = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+    if (!get_parallel || !set_threads) return false;
+    if (get_parallel() == 0) return false;  // the serial build
+    set_threads(1);
+    return true;
+  }();
+  return safe;
+}
+
 CholmodSolver::CholmodSolver(bool supernodal) {
+  blas_is_thread_safe();  // before any BLAS call: a threaded OpenBLAS must first be set to one thread
   // Debian's CHOLMOD runs small loops of the supernodal factorisation in OpenMP regions with a
   // hard-coded num_threads clause; their threads spin against TBB's for the same two cores (a 2.4x
   // slowdown measured on the cantilever). No active parallel level means every such region runs

@@ -38,6 +38,12 @@ class CholmodSolver {
   void solve(const double* b, double* x);
 
   const std::string& error() const { return error_; }
+
+  // Whether the BLAS under CHOLMOD may be called from several threads at once. True for OpenBLAS
+  // built with threading (pthreads or OpenMP: its buffers are locked), which is then told to run
+  // each call on its caller's thread only, so the sums do not depend on any thread count; false
+  // for the serial OpenBLAS (unlocked global buffers) and for a BLAS it cannot identify.
+  static bool blas_is_thread_safe();
   // Non-zeros of the Cholesky factor and flops of one factorisation, from the last analysis.
   double factor_nonzeros() const;
   double factor_flops() const;

@@ -7,10 +7,12 @@
 //
 // Small islands are factorised dense (a 27-vertex box is an 81 x 81 matrix: a dense Cholesky is
 // faster than any sparse bookkeeping). Larger ones go to CHOLMOD: simplicial up to a size where
-// supernodes pay off, supernodal beyond (a torus of 600 DOFs already factorises 1.7x faster). Supernodal CHOLMOD calls the BLAS, and Debian's serial
-// OpenBLAS keeps unlocked global buffers, so those islands must never be factorised or solved
-// concurrently with each other (uses_blas(); newton.cpp runs them one at a time). Dense and
-// simplicial islands share nothing and run in parallel.
+// supernodes pay off, supernodal beyond (a torus of 600 DOFs already factorises 1.7x faster).
+// Supernodal CHOLMOD calls the BLAS. The threaded OpenBLAS (what build.sh installs) locks its
+// buffers and is set to one thread per call, so all islands run in parallel; the serial OpenBLAS
+// keeps unlocked global buffers, and under it supernodal islands must never be factorised or
+// solved at the same time as each other (must_run_alone(); newton.cpp runs them one after the
+// other). Each island's numbers are the same either way.
 #pragma once
 
 #include "engine/solver/cholmod_solver.hpp"
@@ -41,7 +43,10 @@ class IslandSystem {
 
   const std::vector<int32_t>& vertices() const { return vertices_; }
   int64_t num_dofs() const { return 3 * static_cast<int64_t>(vertices_.size()); }
-  bool uses_blas() const { return cholmod_ && num_dofs() > kSimplicialDofs; }
+  // Supernodal CHOLMOD over a BLAS that must not be called from two threads at once.
+  bool must_run_alone() const {
+    return cholmod_ && num_dofs() > kSimplicialDofs && !CholmodSolver::blas_is_thread_safe();
+  }
 
   // Builds the value table for the global pattern of this version; local_index[v] is v's place
   // in the island's vertex list and island_of[v] its island (this one is `island`). Redoes the

@@ -151,12 +151,12 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
     }, 1);
     for (uint8_t changed : analyzed) analyses += changed;
   }
-  // Islands that call the BLAS run one after the other on one thread while the rest share the
-  // others (island_system.hpp); each island's numbers are the same on any thread count.
-  std::vector<int64_t> blas, parallel;
-  for (int64_t a = 0; a < count; ++a) (active_system_[a]->uses_blas() ? blas : parallel).push_back(a);
+  // Islands that must not share the BLAS run one after the other on one thread while the rest
+  // share the others (island_system.hpp); each island's numbers are the same on any thread count.
+  std::vector<int64_t> alone, parallel;
+  for (int64_t a = 0; a < count; ++a) (active_system_[a]->must_run_alone() ? alone : parallel).push_back(a);
   auto run = [&](auto&& work) {
-    run_both([&] { for (int64_t a : blas) work(a); },
+    run_both([&] { for (int64_t a : alone) work(a); },
              [&] {
                parallel_for(static_cast<int64_t>(parallel.size()), [&](int64_t begin, int64_t end) {
                  for (int64_t k = begin; k < end; ++k) work(parallel[k]);
