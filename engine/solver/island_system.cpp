@@ -54,8 +54,9 @@ bool IslandSystem::factorize(const double* global_values) {
   dense_.setZero();
   for (int64_t c = 0; c < n; ++c)
     for (int64_t k = col_ptr_[c]; k < col_ptr_[c + 1]; ++k) dense_(row_idx_[k], c) = values_[k];
-  llt_.compute(dense_);
-  if (llt_.info() == Eigen::Success) return true;
+  // In place: a second n x n copy would double the memory of the many small islands of a pile.
+  const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Upper> llt(dense_);
+  if (llt.info() == Eigen::Success) return true;
   error_ = "matrix not positive definite (dense island of " + std::to_string(n) + " DOFs)";
   return false;
 }
@@ -67,7 +68,8 @@ void IslandSystem::solve(const double* global_rhs, double* global_out) {
     cholmod_->solve(rhs_.data(), out_.data());
   } else {
     Eigen::Map<Eigen::VectorXd> b(rhs_.data(), num_dofs());
-    llt_.solveInPlace(b);
+    dense_.triangularView<Eigen::Upper>().transpose().solveInPlace(b);
+    dense_.triangularView<Eigen::Upper>().solveInPlace(b);
     out_.swap(rhs_);
   }
   for (size_t l = 0; l < vertices_.size(); ++l)

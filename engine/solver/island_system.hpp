@@ -68,8 +68,7 @@ class IslandSystem {
   std::vector<int64_t> col_ptr_, row_idx_;  // the island's upper triangle, local DOFs
   std::vector<int64_t> value_source_;       // (local nnz) index into the global values
   std::vector<double> values_, rhs_, out_;
-  Eigen::MatrixXd dense_;
-  Eigen::LLT<Eigen::MatrixXd, Eigen::Upper> llt_;
+  Eigen::MatrixXd dense_;  // dense islands: the matrix, then its factor U (A = U^T U) in place
   std::unique_ptr<CholmodSolver> cholmod_;
   std::string error_;
 };
