@@ -93,7 +93,9 @@ std::string profile_line(const RunSummary& summary) {
   std::snprintf(head, sizeof head, "time per step: %.4g ms =", summary.step_seconds * per_step_ms);
   std::snprintf(buf, sizeof buf, "; output %.3g ms per step; Newton iterations per step: %.3g",
                 summary.output_seconds * per_step_ms, double(summary.newton_iterations) / double(summary.steps_done));
-  return head + line + buf;
+  std::string tail = buf;
+  std::snprintf(buf, sizeof buf, "; peak Cholesky factors %.3g MB", summary.peak_factor_bytes / (1024.0 * 1024.0));
+  return head + line + tail + buf;
 }
 
 std::string timings_header() {
@@ -213,6 +215,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   stats.finish(summary.ok);
   timings.finish(summary.ok);
   summary.profile = simulation.profile();
+  summary.peak_factor_bytes = simulation.peak_factor_bytes();
   summary.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

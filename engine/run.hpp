@@ -43,10 +43,11 @@ struct RunSummary {
   StepProfile profile;
   double output_seconds = 0.0;  // stats rows and frames (not part of step_seconds)
   int64_t newton_iterations = 0;
+  double peak_factor_bytes = 0.0;  // Cholesky factors held at once, at most
 };
 
 // "time per step: 12.3 ms = broad phase 1.2 + CCD 0.3 + ... + other 0.1; output 0.4 ms per step;
-// Newton iterations per step: 4.5", or "" when no step was done.
+// Newton iterations per step: 4.5; peak Cholesky factors 1.2 MB", or "" when no step was done.
 std::string profile_line(const RunSummary& summary);
 
 std::string stats_row(const StepStats& s);

@@ -67,6 +67,8 @@ class Simulation {
   const KinematicTargets& kinematic() const { return kinematic_; }
   // Wall time of all steps so far, by phase.
   const StepProfile& profile() const { return profile_; }
+  // The largest memory the Newton solver's Cholesky factors held at once [bytes] (0: none).
+  double peak_factor_bytes() const { return newton_ ? newton_->peak_factor_bytes() : 0.0; }
 
  private:
   // Held vertices at their prescribed positions (and velocities, accelerations) at time t;

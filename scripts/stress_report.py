@@ -4,7 +4,8 @@
 Runs `nexdyn run` under /usr/bin/time -v with each thread count (default 2 and 1), reads
 stats.csv and timings.csv, and prints a Markdown table: ms per step, steps per second, Newton
 iterations per step, microseconds per DOF per step and per Newton iteration, peak resident
-memory, and the time of every stage per step; then the 2-thread speed-up of every stage. It also
+memory (also per tet, with and without the Cholesky factors), and the time of every stage per
+step; then the 2-thread speed-up of every stage. It also
 checks that the run stayed intersection-free (min_distance > 0 on every step) and that 1 and 2
 threads gave the same statistics bit for bit.
 
@@ -27,7 +28,7 @@ STAGES = ["broad_phase", "ccd", "barrier", "friction", "elastic", "analysis", "f
 
 
 def run(nexdyn, scene, steps, threads, out):
-    command = ["/usr/bin/time", "-v", nexdyn, "run", str(scene), "--quiet", "--out", str(out),
+    command = ["/usr/bin/time", "-v", nexdyn, "run", str(scene), "--out", str(out),
                "--threads", str(threads)]
     if steps:
         command += ["--steps", str(steps)]
@@ -35,14 +36,15 @@ def run(nexdyn, scene, steps, threads, out):
     if done.returncode != 0:
         sys.exit(f"{' '.join(command)} failed:\n{done.stderr}")
     peak_kb = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", done.stderr).group(1))
+    factor_mb = float(re.search(r"peak Cholesky factors ([0-9.e+-]+) MB", done.stdout + done.stderr).group(1))
     with open(out / "stats.csv") as f:
         stats = list(csv.DictReader(f))
     with open(out / "timings.csv") as f:
         timings = list(csv.DictReader(f))
-    return stats, timings, peak_kb
+    return stats, timings, peak_kb, factor_mb
 
 
-def summary(stats, timings, peak_kb, dofs):
+def summary(stats, timings, peak_kb, factor_mb, dofs, tets):
     steps = len(timings)
     total_ms = sum(float(r["total_ms"]) for r in timings)
     iterations = sum(int(r["newton_iterations"]) for r in stats)
@@ -54,6 +56,10 @@ def summary(stats, timings, peak_kb, dofs):
         "us_per_dof_step": 1e3 * per_step / dofs,
         "ms_per_iteration": total_ms / max(iterations, 1),
         "peak_mb": peak_kb / 1024.0,
+        "factor_mb": factor_mb,
+        # peak memory per tet, and what is left of it once the factors are taken out
+        "kb_per_tet": peak_kb * 1024.0 / tets / 1e3,
+        "kb_per_tet_without_factors": (peak_kb * 1024.0 - factor_mb * 1024.0 * 1024.0) / tets / 1e3,
         "stages": {s: sum(float(r[s + "_ms"]) for r in timings) / steps for s in STAGES},
         "min_distance": min(float(r["min_distance"]) for r in stats),
     }
@@ -78,18 +84,19 @@ def main():
     results, stats_by_threads = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for threads in args.threads:
-            stats, timings, peak_kb = run(args.nexdyn, args.scene, args.steps, threads,
-                                          pathlib.Path(tmp) / f"t{threads}")
-            results[threads] = summary(stats, timings, peak_kb, dofs)
+            stats, timings, peak_kb, factor_mb = run(args.nexdyn, args.scene, args.steps, threads,
+                                                     pathlib.Path(tmp) / f"t{threads}")
+            results[threads] = summary(stats, timings, peak_kb, factor_mb, dofs, tets)
             stats_by_threads[threads] = [{k: v for k, v in r.items() if k != "wall_seconds"} for r in stats]
 
     print(f"{args.scene} ({dofs} DOFs, {tets} tets, {len(stats)} steps)\n")
     print("| threads | ms / step | steps / s | Newton its / step | ms / Newton it | us / DOF / step | "
-          "peak RSS MB | min distance m |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+          "peak RSS MB | factors MB | KB / tet | KB / tet without factors | min distance m |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for threads, r in results.items():
         print(f"| {threads} | {r['ms_per_step']:.1f} | {r['steps_per_s']:.2f} | {r['its_per_step']:.1f} | "
               f"{r['ms_per_iteration']:.2f} | {r['us_per_dof_step']:.3f} | {r['peak_mb']:.0f} | "
+              f"{r['factor_mb']:.0f} | {r['kb_per_tet']:.2f} | {r['kb_per_tet_without_factors']:.2f} | "
               f"{r['min_distance']:.3g} |")
     print("\n| stage (ms / step) | " + " | ".join(f"{t} thread{'s' if t > 1 else ''}" for t in results) +
           (" | speed-up |" if 1 in results and 2 in results else " |"))

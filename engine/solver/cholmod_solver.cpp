@@ -32,20 +32,25 @@ cholmod_sparse wrap(int64_t n, const int64_t* col_ptr, const int64_t* row_idx, c
 }
 }  // namespace
 
-bool CholmodSolver::blas_is_thread_safe() {
+namespace {
+using SetThreads = void (*)(int);
+// OpenBLAS's openblas_set_num_threads when its build is thread-safe, else null.
+SetThreads threaded_openblas() {
   // Looked up at run time: which BLAS libblas.so.3 is depends on the machine's alternatives.
-  static const bool safe = [] {
+  static const SetThreads set_threads = []() -> SetThreads {
     using GetParallel = int (*)();
-    using SetThreads = void (*)(int);
     const auto get_parallel = reinterpret_cast<GetParallel>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
-    const auto set_threads = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-    if (!get_parallel || !set_threads) return false;
-    if (get_parallel() == 0) return false;  // the serial build
-    set_threads(1);
-    return true;
+    const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+    if (!get_parallel || !set || get_parallel() == 0) return nullptr;  // 0: the serial build
+    set(1);
+    return set;
   }();
-  return safe;
+  return set_threads;
 }
+}  // namespace
+
+bool CholmodSolver::blas_is_thread_safe() { return threaded_openblas() != nullptr; }
+
 
 CholmodSolver::CholmodSolver(bool supernodal) {
   blas_is_thread_safe();  // before any BLAS call: a threaded OpenBLAS must first be set to one thread
@@ -87,6 +92,12 @@ void CholmodSolver::analyze(int64_t n, const int64_t* col_ptr, const int64_t* ro
 
 double CholmodSolver::factor_nonzeros() const { return common_->lnz; }
 double CholmodSolver::factor_flops() const { return common_->fl; }
+
+double CholmodSolver::factor_bytes() const {
+  if (!factor_) return 0.0;
+  if (factor_->is_super) return 8.0 * (double(factor_->xsize) + double(factor_->ssize));
+  return 16.0 * double(factor_->nzmax);  // simplicial: a value and a row index per entry
+}
 
 std::string CholmodSolver::ordering_name() const {
   if (!factor_) return "none";

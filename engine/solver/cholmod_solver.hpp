@@ -47,6 +47,8 @@ class CholmodSolver {
   // Non-zeros of the Cholesky factor and flops of one factorisation, from the last analysis.
   double factor_nonzeros() const;
   double factor_flops() const;
+  // Memory of the numeric factor [bytes]: its values and, when supernodal, its row indices.
+  double factor_bytes() const;
   // Name of the fill-reducing ordering chosen by the last analysis.
   std::string ordering_name() const;
 

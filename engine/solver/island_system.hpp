@@ -59,6 +59,10 @@ class IslandSystem {
   // out = H^-1 rhs on the island's DOFs (other entries of out are left alone).
   void solve(const double* global_rhs, double* global_out);
   const std::string& error() const { return error_; }
+  // Memory of the factor [bytes] (a dense island keeps an n x n matrix).
+  double factor_bytes() const {
+    return cholmod_ ? cholmod_->factor_bytes() : 8.0 * static_cast<double>(dense_.size());
+  }
 
   int64_t last_used = 0;  // solve counter of the last use (newton.cpp evicts stale islands)
 

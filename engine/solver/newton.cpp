@@ -228,6 +228,10 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       }
     std::fill(direction_.begin(), direction_.end(), 0.0);
     const int64_t failed = solve_islands(result.analyses);
+    double factor_bytes = 0.0;
+    for (const auto& [hash, bucket] : systems_)
+      for (const auto& system : bucket) factor_bytes += system->factor_bytes();
+    peak_factor_bytes_ = std::max(peak_factor_bytes_, factor_bytes);
     result.island_solves += static_cast<int64_t>(active_.size());
     if (failed >= 0) {
       result.status = StepStatus::factorization_failed;

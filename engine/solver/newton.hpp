@@ -73,6 +73,9 @@ class NewtonSolver {
   void thaw(const std::vector<int32_t>& stencils);
   void keep_converged_next_solve() { keep_converged_ = true; }
 
+  // The largest total memory of the cached islands' factors seen so far [bytes].
+  double peak_factor_bytes() const { return peak_factor_bytes_; }
+
  private:
   void eliminate_dirichlet(double* grad, double* values) const;
   // The value indices of constrained rows and columns, from constrained_dof_.
@@ -104,6 +107,7 @@ class NewtonSolver {
   std::unordered_map<uint64_t, std::vector<std::unique_ptr<IslandSystem>>> systems_;
   int64_t solve_count_ = 0;
   bool keep_converged_ = false;
+  double peak_factor_bytes_ = 0.0;
   std::vector<int32_t> active_;               // islands solved this iteration
   std::vector<uint8_t> vertex_active_;        // (num_vertices) in an active island
   ActiveSubset subset_;                       // what gradient_hessian assembles
