@@ -29,24 +29,21 @@ IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& 
   average_mass_ = free > 0 ? mass / free : 1.0;
 }
 
-double IncrementalPotential::inertia_gravity_energy(const double* x) const {
+double IncrementalPotential::inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const {
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
-  const double inertia = inertia_, scale = scale_;
-  return deterministic_sum(model_.num_vertices, [&](int64_t begin, int64_t end) {
-    double sum = 0.0;
-    for (int64_t v = begin; v < end; ++v) {
-      double kinetic = 0.0, work = 0.0;
-      for (int d = 0; d < 3; ++d) {
-        const double dx = x[3 * v + d] - xt[3 * v + d];
-        kinetic += dx * dx;
-        work += g[d] * dx;
-      }
-      sum += m[v] * (0.5 * inertia * kinetic - scale * work);
+  double sum = 0.0;
+  for (int64_t v = begin; v < end; ++v) {
+    double kinetic = 0.0, work = 0.0;
+    for (int d = 0; d < 3; ++d) {
+      const double dx = x[3 * v + d] - xt[3 * v + d];
+      kinetic += dx * dx;
+      work += g[d] * dx;
     }
-    return sum;
-  }, 1024);
+    sum += m[v] * (0.5 * inertia_ * kinetic - scale_ * work);
+  }
+  return sum;
 }
 
 double IncrementalPotential::energy(const double* x) const {
@@ -60,7 +57,10 @@ double IncrementalPotential::energy(const double* x) const {
   const double joints = joints_ ? joints_->energy(x) : 0.0;
   const double friction = friction_ ? friction_->energy(x) : 0.0;
   const double kinematic = kinematic_ ? kinematic_->energy(x) : 0.0;
-  return inertia_gravity_energy(x) + scale_ * (elastic + joints) +
+  const double inertia = deterministic_sum(model_.num_vertices, [&](int64_t begin, int64_t end) {
+    return inertia_gravity_energy(x, begin, end);
+  }, 1024);
+  return inertia + scale_ * (elastic + joints) +
          contact_scale_ * (kappa_ * barrier + friction) + kinematic;
 }
 
@@ -68,23 +68,8 @@ void IncrementalPotential::group_energy(const double* x, const int32_t* group_of
                                         double* out) {
   // Inertia, gravity and the kinematic targets (unscaled) go straight into out.
   std::fill(out, out + num_groups, 0.0);
-  const double* xt = x_tilde_->data();
-  const double* m = model_.mass.data();
-  const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
   grouped_sum(model_.num_vertices, 1024, [&](int64_t v) { return group_of_vertex[v]; },
-              [&](int64_t begin, int64_t end) {
-    double sum = 0.0;
-    for (int64_t v = begin; v < end; ++v) {
-      double kinetic = 0.0, work = 0.0;
-      for (int d = 0; d < 3; ++d) {
-        const double dx = x[3 * v + d] - xt[3 * v + d];
-        kinetic += dx * dx;
-        work += g[d] * dx;
-      }
-      sum += m[v] * (0.5 * inertia_ * kinetic - scale_ * work);
-    }
-    return sum;
-  }, out);
+              [&](int64_t begin, int64_t end) { return inertia_gravity_energy(x, begin, end); }, out);
   if (kinematic_) kinematic_->group_energy(x, group_of_vertex, out);
   auto zeroed = [&](std::vector<double>& w) -> double* {
     w.assign(num_groups, 0.0);

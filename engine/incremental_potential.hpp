@@ -123,7 +123,8 @@ class IncrementalPotential {
   BarrierPotential* contact() const { return contact_; }
 
  private:
-  double inertia_gravity_energy(const double* x) const;
+  // Inertia and gravity energy of vertices [begin, end).
+  double inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const;
 
   const Model& model_;
   ElasticAssembly& elastic_;
