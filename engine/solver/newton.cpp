@@ -232,7 +232,6 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     for (const auto& [hash, bucket] : systems_)
       for (const auto& system : bucket) factor_bytes += system->factor_bytes();
     peak_factor_bytes_ = std::max(peak_factor_bytes_, factor_bytes);
-    result.island_solves += static_cast<int64_t>(active_.size());
     if (failed >= 0) {
       result.status = StepStatus::factorization_failed;
       result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +

@@ -47,7 +47,6 @@ struct NewtonResult {
   StepStatus status = StepStatus::ok;
   int iterations = 0;        // linear solves
   int analyses = 0;          // symbolic factorisations of islands (pattern changes)
-  int64_t island_solves = 0; // island factorisations, summed over iterations
   double increment = 0.0;    // largest max|p| / dt of the last iteration's islands [m/s]
   std::string message;       // why it failed; empty when ok
 };
