@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <initializer_list>
 #include <iterator>
 
@@ -110,9 +109,7 @@ void NewtonSolver::thaw(const std::vector<int32_t>& stencils) {
 
 void NewtonSolver::unfreeze_contacts() {
   // Only the islands with barrier stencils feel kappa; one cleared vertex thaws its island.
-  if (const std::vector<int32_t>* stencils = potential_.barrier_stencils())
-    for (int32_t v : *stencils)
-      if (v >= 0) vertex_token_[v] = 0;
+  if (const std::vector<int32_t>* stencils = potential_.barrier_stencils()) thaw(*stencils);
 }
 
 IslandSystem& NewtonSolver::island_system(int32_t i) {
@@ -142,7 +139,8 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   {
     // Symbolic analyses of islands whose block of the pattern changed (no BLAS: all parallel).
     ProfileScope scope(profile_, StepPhase::analysis);
-    std::vector<uint8_t> analyzed(count, 0);
+    std::vector<uint8_t>& analyzed = active_analyzed_;
+    analyzed.assign(count, 0);
     parallel_for(count, [&](int64_t begin, int64_t end) {
       for (int64_t a = begin; a < end; ++a)
         analyzed[a] = active_system_[a]->update_pattern(potential_.pattern(), potential_.pattern_version(),
@@ -153,7 +151,10 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   }
   // Islands that must not share the BLAS run one after the other on one thread while the rest
   // share the others (island_system.hpp); each island's numbers are the same on any thread count.
-  std::vector<int64_t> alone, parallel;
+  std::vector<int64_t>& alone = run_alone_;
+  std::vector<int64_t>& parallel = run_parallel_;
+  alone.clear();
+  parallel.clear();
   for (int64_t a = 0; a < count; ++a) (active_system_[a]->must_run_alone() ? alone : parallel).push_back(a);
   auto run = [&](auto&& work) {
     run_both([&] { for (int64_t a : alone) work(a); },

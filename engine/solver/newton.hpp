@@ -112,6 +112,8 @@ class NewtonSolver {
   ActiveSubset subset_;                       // what gradient_hessian assembles
   std::vector<IslandSystem*> active_system_;  // (active_) their systems
   std::vector<uint8_t> active_ok_;            // (active_) factorisation succeeded
+  std::vector<uint8_t> active_analyzed_;      // (active_) symbolic analysis redone
+  std::vector<int64_t> run_alone_, run_parallel_;  // indices into active_, by how they may run
   std::vector<int32_t> vertex_token_;         // (num_vertices) 0 = not converged
   std::vector<int32_t> token_size_;           // (tokens) vertices of the island that converged
   DisjointSets groups_;                       // islands joined by the sweep's candidate pairs
