@@ -21,7 +21,16 @@ using IndexRanges = std::vector<std::pair<int64_t, int64_t>>;  // [begin, end), 
 struct ActiveSubset {
   IndexRanges vertices;
   IndexRanges tets;
+  std::vector<uint8_t> vertex_mask;  // (num_vertices) 1 for the vertices in `vertices`
 };
+
+// Whether a stencil of 4 vertex ids (-1 = none) has a vertex in the mask (null mask: all do).
+inline bool touches(const int32_t* stencil, const uint8_t* mask) {
+  if (!mask) return true;
+  for (int i = 0; i < 4; ++i)
+    if (stencil[i] >= 0 && mask[stencil[i]]) return true;
+  return false;
+}
 
 // Appends index i to sorted ranges (i increasing), extending the last range when adjacent.
 inline void append_index(IndexRanges& ranges, int64_t i) {

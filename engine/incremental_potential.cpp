@@ -136,14 +136,10 @@ void IncrementalPotential::begin_solve(const double* x) {
 void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   if (!contact_) return;
   ProfileScope scope(profile_, StepPhase::barrier);
-  contact_->assemble(x, contact_scale_ * kappa_, true);
+  contact_->build_active_set(x);  // derivatives in gradient_hessian(), for its subset only
   if (!friction_ || friction_->num_stencils() == 0) {
     contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
     return;
-  }
-  {
-    ProfileScope friction_scope(profile_, StepPhase::friction);
-    friction_->compute_derivatives(x, contact_scale_, true);
   }
   // One stencil list for the pattern: the barrier's, then friction's (a copy per iteration; the
   // friction stencils are the barrier's of the lagged state, so the pattern rarely grows).
@@ -175,18 +171,20 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   parallel_for_ranges(elastic_.value_ranges(vertices), 8192, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) elastic_values[k] *= scale;
   });
-  // The contact slabs are already weighted by s_c kappa (prepare()).
+  // Contact derivatives, weighted by s_c kappa (friction: s_c), of the stencils that touch the
+  // subset; the pattern's slab array is the barrier's slabs, then friction's.
+  const bool with_friction = friction_ && friction_->num_stencils() > 0;
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
-    const double* slabs = contact_->local_hessians().data();
-    if (friction_ && friction_->num_stencils() > 0) {
-      contact_slabs_.assign(contact_->local_hessians().begin(),
-                            contact_->local_hessians().begin() + contact_->slab_begin().back());
-      contact_slabs_.insert(contact_slabs_.end(), friction_->local_hessians().begin(),
-                            friction_->local_hessians().begin() + friction_->slab_begin().back());
-      slabs = contact_slabs_.data();
+    const uint8_t* mask = subset ? subset->vertex_mask.data() : nullptr;
+    contact_->compute_derivatives(x, contact_scale_ * kappa_, true, mask);
+    if (with_friction) {
+      ProfileScope friction_scope(profile_, StepPhase::friction);
+      friction_->compute_derivatives(x, contact_scale_, true, mask);
     }
-    contact_pattern_->assemble(elastic_values, slabs, values, &vertices);
+    contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values, &vertices,
+                               with_friction ? friction_->local_hessians().data() : nullptr,
+                               contact_->slab_begin().back());
   }
   parallel_for_ranges(vertices, 1024, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v)

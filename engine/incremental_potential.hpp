@@ -135,7 +135,6 @@ class IncrementalPotential {
   // Barrier and friction stencils as one list for the pattern (friction after the barrier).
   std::vector<int32_t> contact_stencils_;
   std::vector<int64_t> contact_slab_begin_;
-  std::vector<double> contact_slabs_;
   StepProfile* profile_ = nullptr;
   std::unique_ptr<ContactPattern> contact_pattern_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact

@@ -117,6 +117,7 @@ double bodies_bbox_diagonal(const Model& model) {
 BarrierPotential::BarrierPotential(const Model& model, double dhat)
     : model_(model), dhat_(dhat), dhat2_(dhat * dhat) {
   x1_.resize(model.num_dofs());
+  pair_x_.resize(model.num_dofs());
 }
 
 void BarrierPotential::find_candidates(const double* x0, const double* x1) {
@@ -125,6 +126,7 @@ void BarrierPotential::find_candidates(const double* x0, const double* x1) {
   if (!x1 && static_search_ && std::equal(x0, x0 + n, static_x_.begin())) return;
   ProfileScope scope(profile_, StepPhase::broad_phase);
   find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
+  forget_pairs();
   static_search_ = x1 == nullptr;
   if (static_search_) static_x_.assign(x0, x0 + n);
 }
@@ -237,8 +239,11 @@ void BarrierPotential::group_energy(const double* x, const int32_t* group_of_ver
   over(c.vertex_plane, [&](int64_t i) { return first_group({c.vertex_plane[i].first}); }, eval_vertex_plane);
 }
 
-double BarrierPotential::min_squared_distance(const double* x) const {
-  return reduce_pairs(model_, candidates_, x, dhat2_, kInf, MinDistance{});
+double BarrierPotential::min_squared_distance(const double* x) {
+  refresh_pairs(x);
+  double min_d = kInf;
+  for (double d : pair_distance_) min_d = std::min(min_d, d);
+  return min_d;
 }
 
 BarrierPotential::Summary BarrierPotential::summarize(const double* x) const {
@@ -288,7 +293,85 @@ constexpr uint8_t kMollifiedCode = 32;
 int32_t lower(int32_t a, int32_t b) { return a < b ? a : b; }
 int32_t upper(int32_t a, int32_t b) { return a < b ? b : a; }
 
+// The vertex ids of candidate i (vertex-triangle: p, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1,
+// the stencil order; vertex-plane: v, then -1s).
+void candidate_vertices(const Model& m, const ContactCandidates& c, int64_t i, int32_t (&s)[4]) {
+  const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
+  const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
+  if (i < nvt) {
+    const IndexPair& pair = c.vertex_triangle[i];
+    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+    s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
+  } else if (i < nvt + nee) {
+    const IndexPair& pair = c.edge_edge[i - nvt];
+    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+    s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
+  } else {
+    s[0] = c.vertex_plane[i - nvt - nee].first;
+    s[1] = s[2] = s[3] = -1;
+  }
+}
+
 }  // namespace
+
+void BarrierPotential::refresh_pairs(const double* x) {
+  const ContactCandidates& c = candidates_;
+  const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
+  const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
+  const int64_t num = c.size();
+  if (static_cast<int64_t>(pair_known_.size()) != num) forget_pairs();
+  pair_distance_.resize(num);
+  candidate_code_.resize(num);
+
+  // Vertices whose position differs from the cached one (NaN always does), brought up to date.
+  const int64_t nv = model_.num_vertices;
+  vertex_changed_.resize(nv);
+  parallel_for(nv, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      const double* p = x + 3 * v;
+      double* q = &pair_x_[3 * v];
+      const bool changed = !(p[0] == q[0] && p[1] == q[1] && p[2] == q[2]);
+      vertex_changed_[v] = changed;
+      if (changed) std::copy(p, p + 3, q);
+    }
+  }, 8192);
+
+  parallel_for((num + kCandidateChunk - 1) / kCandidateChunk, [&](int64_t cb, int64_t ce) {
+    for (int64_t i = cb * kCandidateChunk; i < std::min(num, ce * kCandidateChunk); ++i) {
+      int32_t s[4];
+      candidate_vertices(model_, c, i, s);
+      if (pair_known_[i] && !vertex_changed_[s[0]] && (s[1] < 0 || !(vertex_changed_[s[1]] |
+          vertex_changed_[s[2]] | vertex_changed_[s[3]])))
+        continue;
+      uint8_t code = 0;
+      double d = kInf;
+      if (i < nvt + nee) {
+        const Eigen::Vector3d X0 = point(x, s[0]), X1 = point(x, s[1]);
+        const Eigen::Vector3d X2 = point(x, s[2]), X3 = point(x, s[3]);
+        if (i < nvt) {
+          const PointTriangleCase pc = point_triangle_case(X0, X1, X2, X3);
+          d = point_triangle_distance(X0, X1, X2, X3, pc);
+          if (d < dhat2_) code = 1 + static_cast<uint8_t>(pc);
+        } else {
+          const EdgeEdgeCase ec = edge_edge_case(X0, X1, X2, X3);
+          d = edge_edge_distance(X0, X1, X2, X3, ec);
+          if (d < dhat2_) {
+            code = 1 + static_cast<uint8_t>(ec);
+            const double eps_x = edge_edge_threshold(model_, &s[0], &s[2]);
+            if (edge_edge_cross_squarednorm(X0, X1, X2, X3) < eps_x) code |= kMollifiedCode;
+          }
+        }
+      } else {
+        d = eval_vertex_plane(model_, x, c.vertex_plane[i - nvt - nee], dhat2_).d;
+        if (d < dhat2_) code = 1;
+      }
+      pair_distance_[i] = d;
+      candidate_code_[i] = code;
+      pair_known_[i] = 1;
+    }
+  }, 1);
+}
 
 void BarrierPotential::build_active_set(const double* x) {
   const ContactCandidates& c = candidates_;
@@ -296,22 +379,7 @@ void BarrierPotential::build_active_set(const double* x) {
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
   const int64_t num = c.size();
   const int64_t chunks = (num + kCandidateChunk - 1) / kCandidateChunk;
-  const int32_t* tris = model_.surface_triangles.data();
-  const int32_t* edges = model_.surface_edges.data();
 
-  // The vertex ids of candidate i in stencil order (p, t0, t1, t2 or ea0, ea1, eb0, eb1).
-  auto candidate_vertices = [&](int64_t i, int32_t (&s)[4]) {
-    if (i < nvt) {
-      const IndexPair& pair = c.vertex_triangle[i];
-      const int32_t* t = &tris[3 * int64_t{pair.second}];
-      s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
-    } else {
-      const IndexPair& pair = c.edge_edge[i - nvt];
-      const int32_t* ea = &edges[2 * int64_t{pair.first}];
-      const int32_t* eb = &edges[2 * int64_t{pair.second}];
-      s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
-    }
-  };
   // The closest feature of an active vertex-triangle or edge-edge candidate, from its code.
   auto feature_of_code = [&](int64_t i, uint8_t code) {
     return i < nvt ? feature_of(static_cast<PointTriangleCase>(code - 1))
@@ -323,35 +391,16 @@ void BarrierPotential::build_active_set(const double* x) {
     return feature_of_code(i, code).n < 4;
   };
 
-  // Pass 1: classify every candidate, count unique and mergeable active pairs per chunk.
-  candidate_code_.resize(num);
+  // Pass 1: classify every candidate (refresh_pairs), count unique and mergeable active pairs
+  // per chunk.
+  refresh_pairs(x);
   chunk_unique_begin_.assign(chunks + 1, 0);
   chunk_feature_begin_.assign(chunks + 1, 0);
   parallel_for(chunks, [&](int64_t cb, int64_t ce) {
     for (int64_t k = cb; k < ce; ++k) {
       int64_t unique = 0, mergeable_pairs = 0;
       for (int64_t i = k * kCandidateChunk; i < std::min(num, (k + 1) * kCandidateChunk); ++i) {
-        uint8_t code = 0;
-        if (i < nvt + nee) {
-          int32_t s[4];
-          candidate_vertices(i, s);
-          const Eigen::Vector3d X0 = point(x, s[0]), X1 = point(x, s[1]);
-          const Eigen::Vector3d X2 = point(x, s[2]), X3 = point(x, s[3]);
-          if (i < nvt) {
-            const PointTriangleCase pc = point_triangle_case(X0, X1, X2, X3);
-            if (point_triangle_distance(X0, X1, X2, X3, pc) < dhat2_) code = 1 + static_cast<uint8_t>(pc);
-          } else {
-            const EdgeEdgeCase ec = edge_edge_case(X0, X1, X2, X3);
-            if (edge_edge_distance(X0, X1, X2, X3, ec) < dhat2_) {
-              code = 1 + static_cast<uint8_t>(ec);
-              const double eps_x = edge_edge_threshold(model_, &s[0], &s[2]);
-              if (edge_edge_cross_squarednorm(X0, X1, X2, X3) < eps_x) code |= kMollifiedCode;
-            }
-          }
-        } else {
-          if (eval_vertex_plane(model_, x, c.vertex_plane[i - nvt - nee], dhat2_).d < dhat2_) code = 1;
-        }
-        candidate_code_[i] = code;
+        const uint8_t code = candidate_code_[i];
         if (code == 0) continue;
         if (mergeable(i, code)) ++mergeable_pairs;
         else ++unique;
@@ -388,7 +437,7 @@ void BarrierPotential::build_active_set(const double* x) {
           continue;
         }
         int32_t s[4];
-        candidate_vertices(i, s);
+        candidate_vertices(model_, c, i, s);
         if (mergeable(i, code)) {
           const Feature f = feature_of_code(i, code);
           const int32_t p = s[f.idx[0]], q = s[f.idx[1]];
@@ -621,7 +670,8 @@ double BarrierPotential::active_set_energy(const double* x) const {
   }, 1024);
 }
 
-void BarrierPotential::compute_derivatives(const double* x, double weight, bool with_hessian) {
+void BarrierPotential::compute_derivatives(const double* x, double weight, bool with_hessian,
+                                           const uint8_t* active) {
   const int64_t ns = num_stencils();
   gradients_.resize(12 * ns);
   if (with_hessian) hessians_.resize(slab_begin_[ns]);
@@ -630,6 +680,10 @@ void BarrierPotential::compute_derivatives(const double* x, double weight, bool 
       const int32_t* s = &vertices_[4 * k];
       const double w = weight * multiplicity_[k];
       double* grad = &gradients_[12 * k];
+      if (!touches(&stencils_[4 * k], active)) {
+        std::fill(grad, grad + 12, 0.0);
+        continue;
+      }
       double* hess = with_hessian ? &hessians_[slab_begin_[k]] : nullptr;
       switch (kind_[k]) {
         case StencilKind::vertex_plane: {
@@ -737,12 +791,41 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
       if (moving[v]) return false;
     return true;
   };
+  // Each list becomes its kept pairs merged with the fresh ones; a kept pair carries its cache
+  // entry (refresh_pairs) along, a fresh one starts unknown.
+  const int64_t old_size = candidates_.size();
+  if (static_cast<int64_t>(pair_known_.size()) != old_size) forget_pairs();
+  pair_distance_.resize(old_size);
+  candidate_code_.resize(old_size);
+  merged_known_.clear();
+  merged_code_.clear();
+  merged_distance_.clear();
+  int64_t old_base = 0;
   auto update = [&](std::vector<IndexPair>& list, const std::vector<IndexPair>& fresh, auto&& keep) {
     kept_.clear();
-    for (const IndexPair& pr : list)
-      if (keep(pr)) kept_.push_back(pr);
+    kept_index_.clear();
+    for (size_t i = 0; i < list.size(); ++i)
+      if (keep(list[i])) {
+        kept_.push_back(list[i]);
+        kept_index_.push_back(old_base + static_cast<int64_t>(i));
+      }
+    old_base += static_cast<int64_t>(list.size());
     list.resize(kept_.size() + fresh.size());
-    std::merge(kept_.begin(), kept_.end(), fresh.begin(), fresh.end(), list.begin());
+    size_t a = 0, b = 0;
+    for (IndexPair& out : list) {
+      if (b == fresh.size() || (a < kept_.size() && kept_[a] < fresh[b])) {
+        const int64_t k = kept_index_[a];
+        out = kept_[a++];
+        merged_known_.push_back(pair_known_[k]);
+        merged_code_.push_back(candidate_code_[k]);
+        merged_distance_.push_back(pair_distance_[k]);
+      } else {
+        out = fresh[b++];
+        merged_known_.push_back(0);
+        merged_code_.push_back(0);
+        merged_distance_.push_back(kInf);
+      }
+    }
   };
   update(candidates_.vertex_triangle, fresh_.vertex_triangle, [&](const IndexPair& pr) {
     const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
@@ -755,6 +838,9 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   });
   update(candidates_.vertex_plane, fresh_.vertex_plane,
          [&](const IndexPair& pr) { return still({pr.first}); });
+  pair_known_.swap(merged_known_);
+  candidate_code_.swap(merged_code_);
+  pair_distance_.swap(merged_distance_);
 }
 
 void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {

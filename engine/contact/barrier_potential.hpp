@@ -28,6 +28,7 @@
 // latter because their rows and columns are eliminated from the Newton system anyway.
 #pragma once
 
+#include "engine/active_subset.hpp"
 #include "engine/contact/candidates.hpp"
 #include "engine/model.hpp"
 #include "engine/step_profile.hpp"
@@ -76,7 +77,7 @@ class BarrierPotential {
   void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   // Smallest squared distance over the candidates (squared signed distance for planes, 0 behind
   // one); +inf without candidates.
-  double min_squared_distance(const double* x) const;
+  double min_squared_distance(const double* x);
 
   // The contact columns of stats.csv at x, from a fresh candidate search (the candidate list the
   // solver uses is left alone): the barrier sum, the number of pairs closer than dhat, and the
@@ -93,8 +94,10 @@ class BarrierPotential {
   void build_active_set(const double* x);
   // Derivatives of weight * b over the active set, at the x it was built at: gradient and, when
   // with_hessian, the PSD-projected Hessian slabs (column-major 3n x 3n, rows and columns in
-  // stencil order, at slab_begin()[s]).
-  void compute_derivatives(const double* x, double weight, bool with_hessian);
+  // stencil order, at slab_begin()[s]). With `active` (num_vertices flags), only the stencils
+  // with an active vertex are computed; the others get a zero gradient and no Hessian slab.
+  void compute_derivatives(const double* x, double weight, bool with_hessian,
+                           const uint8_t* active = nullptr);
   void assemble(const double* x, double weight, bool with_hessian) {
     build_active_set(x);
     compute_derivatives(x, weight, with_hessian);
@@ -150,8 +153,25 @@ class BarrierPotential {
     int32_t a, b, c;  // point-point: a < b; point-edge: point a, edge b < c
   };
 
+  // Per candidate (vertex-triangle, then edge-edge, then vertex-plane): its squared distance
+  // and active-set code (0 inactive, else closest feature + 1) at pair_x_, valid where
+  // pair_known_ is set. A Newton iteration moves only the islands not yet converged, so most
+  // pairs keep their numbers from one iteration to the next; refresh_pairs() recomputes the
+  // pairs that are new or have a vertex whose position changed, compared exactly.
+  void refresh_pairs(const double* x);
+  // Lowers every cache entry's flag (the candidate list was replaced).
+  void forget_pairs() { pair_known_.assign(static_cast<size_t>(candidates_.size()), 0); }
+  std::vector<double> pair_x_;          // (3n) positions of the cached numbers
+  std::vector<uint8_t> vertex_changed_; // (num_vertices) workspace of refresh_pairs()
+  std::vector<uint8_t> pair_known_;     // (candidates)
+  std::vector<double> pair_distance_;   // (candidates)
+  std::vector<uint8_t> candidate_code_; // (candidates)
+  // Workspace of sweep(): the merged lists' cache entries, and the kept pairs' old indices.
+  std::vector<uint8_t> merged_known_, merged_code_;
+  std::vector<double> merged_distance_;
+  std::vector<int64_t> kept_index_;
+
   // Workspace of build_active_set(), kept to avoid allocation per iteration.
-  std::vector<uint8_t> candidate_code_;       // (candidates) 0 inactive, else closest feature + 1
   std::vector<int64_t> chunk_unique_begin_;   // (chunks + 1) unique stencils before each chunk
   std::vector<int64_t> chunk_feature_begin_;  // (chunks + 1) mergeable pairs before each chunk
   std::vector<FeatureKey> features_;          // (mergeable pairs) in candidate order

@@ -173,12 +173,17 @@ void FrictionPotential::group_energy(const double* x, const int32_t* group_of_ve
   }, total);
 }
 
-void FrictionPotential::compute_derivatives(const double* x, double weight, bool with_hessian) {
+void FrictionPotential::compute_derivatives(const double* x, double weight, bool with_hessian,
+                                            const uint8_t* active) {
   const int64_t num = num_stencils();
   gradients_.resize(12 * num);
   if (with_hessian) hessians_.resize(slab_begin_[num]);
   parallel_for(num, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) {
+      if (!touches(&stencils_[4 * k], active)) {
+        std::fill(&gradients_[12 * k], &gradients_[12 * k] + 12, 0.0);
+        continue;
+      }
       const Vector12d dx = displacement(x, k);
       Eigen::Map<Vector12d>{&gradients_[12 * k]} =
           weight * friction_gradient(basis_[k], dx, mu_[k], normal_force_[k], eps_u_);

@@ -66,8 +66,10 @@ class FrictionPotential {
   // (group_of_vertex[v], -1 = does not move).
   void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   double energy(const double* x) const;
-  // Derivatives of weight * D at x; layout as BarrierPotential's (stencils, slab_begin).
-  void compute_derivatives(const double* x, double weight, bool with_hessian);
+  // Derivatives of weight * D at x; layout as BarrierPotential's (stencils, slab_begin), and as
+  // there only the stencils with an `active` vertex when given.
+  void compute_derivatives(const double* x, double weight, bool with_hessian,
+                           const uint8_t* active = nullptr);
   void add_gradient(double* grad) const;
   const std::vector<int32_t>& stencils() const { return stencils_; }       // (num x 4), -1 = held/absent
   const std::vector<int64_t>& slab_begin() const { return slab_begin_; }   // (num + 1)

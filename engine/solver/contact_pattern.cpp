@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 namespace nexdyn {
@@ -185,7 +186,8 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
 }
 
 void ContactPattern::assemble(const double* elastic_values, const double* slabs, double* values,
-                              const IndexRanges* vertices) const {
+                              const IndexRanges* vertices, const double* more_slabs, int64_t split) const {
+  if (!more_slabs) split = std::numeric_limits<int64_t>::max();
   const CscPattern& e = elastic_;
   const IndexRanges all{{0, merged_.num_dofs / 3}};
   parallel_for_ranges(vertices ? *vertices : all, 256, [&](int64_t begin, int64_t end) {
@@ -206,7 +208,8 @@ void ContactPattern::assemble(const double* elastic_values, const double* slabs,
           const Entry& en = entries_[q];
           const int rows = en.diagonal ? c + 1 : 3;
           double* out = values + en.value + shift;
-          const double* in = slabs + en.source + c * en.stride;
+          const int64_t source = en.source;
+          const double* in = (source < split ? slabs + source : more_slabs + (source - split)) + c * en.stride;
           for (int r = 0; r < rows; ++r) out[r] += in[r];
         }
       }

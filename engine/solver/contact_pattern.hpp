@@ -42,8 +42,11 @@ class ContactPattern {
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
   // of their slabs (laid out as given to update()).
   // With vertex ranges, only those vertices' columns are written.
+  // The slab array may come in two pieces: slab indices from `split` on are read from
+  // more_slabs[index - split] (the barrier's slabs, then friction's, without a copy).
   void assemble(const double* elastic_values, const double* contact_slabs, double* values,
-                const IndexRanges* vertices = nullptr) const;
+                const IndexRanges* vertices = nullptr, const double* more_slabs = nullptr,
+                int64_t split = 0) const;
 
  private:
   void rebuild(std::vector<std::pair<int32_t, int32_t>> pairs);

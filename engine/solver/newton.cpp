@@ -87,18 +87,19 @@ void NewtonSolver::mark_converged(int32_t island) {
 }
 
 void NewtonSolver::update_subset() {
-  vertex_active_.assign(model_.num_vertices, 0);
+  std::vector<uint8_t>& active = subset_.vertex_mask;
+  active.assign(model_.num_vertices, 0);
   for (int32_t i : active_)
     for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
-      vertex_active_[islands_.vertices()[k]] = 1;
+      active[islands_.vertices()[k]] = 1;
   subset_.vertices.clear();
   subset_.tets.clear();
   for (int32_t v = 0; v < model_.num_vertices; ++v)
-    if (vertex_active_[v]) append_index(subset_.vertices, v);
+    if (active[v]) append_index(subset_.vertices, v);
   const int32_t* tets = model_.tets.data();
   for (int32_t t = 0; t < model_.num_tets; ++t)
-    if (vertex_active_[tets[4 * t]] | vertex_active_[tets[4 * t + 1]] | vertex_active_[tets[4 * t + 2]] |
-        vertex_active_[tets[4 * t + 3]])
+    if (active[tets[4 * t]] | active[tets[4 * t + 1]] | active[tets[4 * t + 2]] |
+        active[tets[4 * t + 3]])
       append_index(subset_.tets, t);
 }
 

@@ -108,7 +108,6 @@ class NewtonSolver {
   bool keep_converged_ = false;
   double peak_factor_bytes_ = 0.0;
   std::vector<int32_t> active_;               // islands solved this iteration
-  std::vector<uint8_t> vertex_active_;        // (num_vertices) in an active island
   ActiveSubset subset_;                       // what gradient_hessian assembles
   std::vector<IslandSystem*> active_system_;  // (active_) their systems
   std::vector<uint8_t> active_ok_;            // (active_) factorisation succeeded
