@@ -23,6 +23,7 @@
 
 #include "bvh/blocked_boxes.hpp"
 #include "bvh/box_tree.hpp"
+#include "engine/active_subset.hpp"
 #include "engine/parallel.hpp"
 
 #include <algorithm>
@@ -86,15 +87,14 @@ std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0, const
   return shift;
 }
 
-// Boxes (n x 3 lower, n x 3 upper) of primitives with K vertices each, covering them at x0 and
-// at x1 - shift of their body (no shift: shift == nullptr), inflated by r.
+// Boxes (lower, upper: 3 per primitive, by primitive index) of the primitives with K vertices
+// each in `ranges`, covering them at x0 and at x1 - shift of their body (no shift: shift ==
+// nullptr), inflated by r.
 template <int K>
-void primitive_boxes(const Model& m, const int32_t* ids, int64_t n, const double* x0,
-                     const double* x1, const Eigen::Vector3d* shift, double r,
-                     std::vector<double>& lower, std::vector<double>& upper) {
-  lower.resize(3 * n);
-  upper.resize(3 * n);
-  parallel_for(n, [&](int64_t begin, int64_t end) {
+void primitive_boxes(const Model& m, const int32_t* ids, const IndexRanges& ranges, const double* x0,
+                     const double* x1, const Eigen::Vector3d* shift, double r, double* lower,
+                     double* upper) {
+  parallel_for_ranges(ranges, 1024, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const int64_t first = ids[K * i];
       const double* s = shift ? shift[m.vertex_body[first]].data() : nullptr;
@@ -114,35 +114,21 @@ void primitive_boxes(const Model& m, const int32_t* ids, int64_t n, const double
         upper[3 * i + d] = hi + r;
       }
     }
-  }, 1024);
+  });
 }
 
-// Boxes of every surface vertex, edge and triangle in one frame.
-struct FrameBoxes {
-  std::vector<double> v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
-  FrameBoxes(const Model& m, const double* x0, const double* x1, const Eigen::Vector3d* shift,
-             double r) {
-    const auto nv = static_cast<int64_t>(m.surface_vertices.size());
-    const auto ne = static_cast<int64_t>(m.surface_edges.size() / 2);
-    const auto nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
-    primitive_boxes<1>(m, m.surface_vertices.data(), nv, x0, x1, shift, r, v_lo, v_hi);
-    primitive_boxes<2>(m, m.surface_edges.data(), ne, x0, x1, shift, r, e_lo, e_hi);
-    primitive_boxes<3>(m, m.surface_triangles.data(), nt, x0, x1, shift, r, t_lo, t_hi);
-  }
-};
+// n doubles, left uninitialised: boxes are written only for the bodies a search needs, and
+// zero-filling a vector for every primitive would cost more than searching a few bodies.
+class Doubles {
+ public:
+  void resize(size_t n) { data_.reset(new double[n]); }
+  double* data() { return data_.get(); }
+  const double* data() const { return data_.get(); }
+  double& operator[](size_t i) { return data_[i]; }
+  const double& operator[](size_t i) const { return data_[i]; }
 
-// Primitive boxes for pairs of different bodies (world frame) and for pairs within one body
-// (its co-moving frame). Without motion the two frames are the same boxes.
-struct SurfaceBoxes {
-  FrameBoxes world;
-  std::unique_ptr<FrameBoxes> moving;  // null without x1
-  SurfaceBoxes(const Model& m, const double* x0, const double* x1, double r)
-      : world(m, x0, x1, nullptr, r) {
-    if (!x1) return;
-    const std::vector<Eigen::Vector3d> shift = body_shifts(m, x0, x1);
-    moving = std::make_unique<FrameBoxes>(m, x0, x1, shift.data(), r);
-  }
-  const FrameBoxes& body_frame() const { return moving ? *moving : world; }
+ private:
+  std::unique_ptr<double[]> data_;
 };
 
 // Index ranges of one body's primitives: surface vertices [sv_begin, sv_end) of
@@ -174,6 +160,53 @@ std::vector<BodyPrimitives> body_primitives(const Model& m, const uint8_t* free)
   return out;
 }
 
+// Boxes of the surface vertices, edges and triangles of the bodies with wanted[b] (null: all) in
+// one frame, by primitive index; the other bodies' entries are left unset.
+struct FrameBoxes {
+  Doubles v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
+  FrameBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const uint8_t* wanted,
+             const double* x0, const double* x1, const Eigen::Vector3d* shift, double r) {
+    IndexRanges sv, edges, triangles;
+    auto append = [](IndexRanges& ranges, int64_t begin, int64_t end) {
+      if (begin == end) return;
+      if (!ranges.empty() && ranges.back().second == begin) ranges.back().second = end;
+      else ranges.emplace_back(begin, end);
+    };
+    for (size_t b = 0; b < prims.size(); ++b) {
+      if (wanted && !wanted[b]) continue;
+      append(sv, prims[b].sv_begin, prims[b].sv_end);
+      append(edges, prims[b].e_begin, prims[b].e_end);
+      append(triangles, prims[b].t_begin, prims[b].t_end);
+    }
+    v_lo.resize(3 * m.surface_vertices.size());
+    v_hi.resize(3 * m.surface_vertices.size());
+    e_lo.resize(m.surface_edges.size() / 2 * 3);
+    e_hi.resize(m.surface_edges.size() / 2 * 3);
+    t_lo.resize(m.surface_triangles.size());
+    t_hi.resize(m.surface_triangles.size());
+    primitive_boxes<1>(m, m.surface_vertices.data(), sv, x0, x1, shift, r, v_lo.data(), v_hi.data());
+    primitive_boxes<2>(m, m.surface_edges.data(), edges, x0, x1, shift, r, e_lo.data(), e_hi.data());
+    primitive_boxes<3>(m, m.surface_triangles.data(), triangles, x0, x1, shift, r, t_lo.data(),
+                       t_hi.data());
+  }
+};
+
+// Primitive boxes for pairs of different bodies (world frame, the bodies with world_wanted) and
+// for pairs within one body (its co-moving frame, the bodies with own_wanted). Without motion the
+// two frames are the same boxes.
+struct SurfaceBoxes {
+  FrameBoxes world;
+  std::unique_ptr<FrameBoxes> moving;  // null without x1
+  SurfaceBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const uint8_t* world_wanted,
+               const uint8_t* own_wanted, const double* x0, const double* x1, double r)
+      : world(m, prims, world_wanted, x0, x1, nullptr, r) {
+    if (!x1) return;
+    const std::vector<Eigen::Vector3d> shift = body_shifts(m, x0, x1);
+    moving = std::make_unique<FrameBoxes>(m, prims, own_wanted, x0, x1, shift.data(), r);
+  }
+  const FrameBoxes& body_frame() const { return moving ? *moving : world; }
+};
+
 // The pairs of bodies whose world boxes overlap, as a CSR over bodies (found by Embree over the
 // body boxes). A body's box is the union of its surface vertices' boxes, which contain its edges'
 // and triangles'. Pairs of two bodies without a free vertex are left out.
@@ -193,7 +226,7 @@ struct NeighborBodies {
 };
 
 NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
-                               const FrameBoxes& world) {
+                               const double* x0, const double* x1, double r) {
   const auto nb = static_cast<int32_t>(m.bodies.size());
   NeighborBodies out;
   std::vector<double>& lo = out.body_lo;
@@ -206,11 +239,20 @@ NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>
         lo[3 * b + d] = std::numeric_limits<double>::infinity();
         hi[3 * b + d] = -std::numeric_limits<double>::infinity();
       }
-      for (int64_t i = prims[b].sv_begin; i < prims[b].sv_end; ++i)
+      // The union of the vertex boxes (primitive_boxes<1>): the same numbers, since rounding
+      // the inflation is monotone.
+      for (int64_t i = prims[b].sv_begin; i < prims[b].sv_end; ++i) {
+        const int64_t v = m.surface_vertices[i];
         for (int d = 0; d < 3; ++d) {
-          lo[3 * b + d] = std::min(lo[3 * b + d], world.v_lo[3 * i + d]);
-          hi[3 * b + d] = std::max(hi[3 * b + d], world.v_hi[3 * i + d]);
+          double vlo = x0[3 * v + d], vhi = vlo;
+          if (x1) {
+            vlo = std::min(vlo, x1[3 * v + d]);
+            vhi = std::max(vhi, x1[3 * v + d]);
+          }
+          lo[3 * b + d] = std::min(lo[3 * b + d], vlo - r);
+          hi[3 * b + d] = std::max(hi[3 * b + d], vhi + r);
         }
+      }
     }
   }, 1);
   // Embree drops boxes with lower > upper; a body without surface primitives has no pairs.
@@ -318,14 +360,16 @@ void collect_pairs(int64_t n, Emit&& emit, std::vector<IndexPair>& out) {
   }, 1);
 }
 
-// One frame's boxes of every body's triangles and edges, listed by id (list b: body b).
+// One frame's boxes of the triangles and edges of the bodies with wanted[b], listed by id (list
+// b: body b; empty for the others).
 struct BodyLists {
   BlockedBoxes triangles, edges;
 
-  BodyLists(const std::vector<BodyPrimitives>& prims, const FrameBoxes& f) {
+  BodyLists(const std::vector<BodyPrimitives>& prims, const FrameBoxes& f, const uint8_t* wanted) {
     const auto nb = static_cast<int64_t>(prims.size());
-    std::vector<int32_t> triangle_count(nb), edge_count(nb);
+    std::vector<int32_t> triangle_count(nb, 0), edge_count(nb, 0);
     for (int64_t b = 0; b < nb; ++b) {
+      if (!wanted[b]) continue;
       triangle_count[b] = prims[b].t_end - prims[b].t_begin;
       edge_count[b] = prims[b].e_end - prims[b].e_begin;
     }
@@ -333,6 +377,7 @@ struct BodyLists {
     edges.layout(edge_count);
     parallel_for(nb, [&](int64_t begin, int64_t end) {
       for (int64_t b = begin; b < end; ++b) {
+        if (!wanted[b]) continue;
         const BodyPrimitives& p = prims[b];
         for (int32_t t = p.t_begin; t < p.t_end; ++t)
           triangles.set(b, t - p.t_begin, &f.t_lo[3 * int64_t{t}], &f.t_hi[3 * int64_t{t}], t);
@@ -374,8 +419,7 @@ struct NeighborSubsets {
 // only entries with wanted(k) get a subset.
 template <typename Wanted>
 NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedBoxes& body_lists,
-                                 const std::vector<double>& lower, const std::vector<double>& upper,
-                                 Wanted&& wanted) {
+                                 const Doubles& lower, const Doubles& upper, Wanted&& wanted) {
   const auto entries = static_cast<int64_t>(neighbors.body.size());
   NeighborSubsets s;
   std::vector<std::vector<int32_t>> found(static_cast<size_t>(entries));  // B's ids, in order
@@ -454,12 +498,20 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
                              ContactCandidates& out, const uint8_t* moving) {
   const std::vector<uint8_t> free_storage = free_vertices(m, moving);
   const uint8_t* free = free_storage.data();
-  const SurfaceBoxes boxes(m, x0, x1, inflation);
-  const FrameBoxes& world = boxes.world;
-  const FrameBoxes& own = boxes.body_frame();
   const std::vector<BodyPrimitives> prims = body_primitives(m, free);
   const auto nb = static_cast<int64_t>(m.bodies.size());
-  const NeighborBodies neighbors = neighbor_bodies(m, prims, world);
+  const NeighborBodies neighbors = neighbor_bodies(m, prims, x0, x1, inflation);
+  // Only bodies with a free vertex and their neighbours can be in a pair: only their primitives
+  // are boxed and searched (a re-search after a few bodies moved costs what those bodies cost),
+  // and only the former's own pairs.
+  std::vector<uint8_t> searched(nb), own_searched(nb);
+  for (int64_t b = 0; b < nb; ++b) {
+    own_searched[b] = prims[b].any_free;
+    searched[b] = prims[b].any_free || neighbors.ptr[b + 1] > neighbors.ptr[b];
+  }
+  const SurfaceBoxes boxes(m, prims, searched.data(), own_searched.data(), x0, x1, inflation);
+  const FrameBoxes& world = boxes.world;
+  const FrameBoxes& own = boxes.body_frame();
 
   const auto nt = static_cast<int64_t>(m.surface_triangles.size() / 3);
   const auto ne = static_cast<int64_t>(m.surface_edges.size() / 2);
@@ -467,7 +519,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   const std::vector<uint8_t> edge_free = free_flags<2>(free, m.surface_edges.data(), ne);
   // Vertex-triangle pairs need every neighbour's triangles; edge-edge pairs are found from their
   // lower edge, so only the higher-numbered neighbours' edges.
-  const BodyLists world_lists(prims, world);
+  const BodyLists world_lists(prims, world, searched.data());
   const NeighborSubsets tri_near = neighbor_subsets(neighbors, world_lists.triangles, world.t_lo,
                                                     world.t_hi, [](int64_t) { return true; });
   const NeighborSubsets edge_near = neighbor_subsets(
@@ -491,7 +543,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
   }, 1);
   // Same-body pairs scan the body's own lists (in its frame), or its tree when too long.
   const std::unique_ptr<BodyLists> moving_lists =
-      boxes.moving ? std::make_unique<BodyLists>(prims, own) : nullptr;
+      boxes.moving ? std::make_unique<BodyLists>(prims, own, own_searched.data()) : nullptr;
   const BodyLists& own_lists = moving_lists ? *moving_lists : world_lists;
   const SameBodyTrees same_body(prims, own);
 
@@ -527,6 +579,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       [&](int32_t i, PairBuffer& buffer) {
         const int32_t v = m.surface_vertices[i];
         const int32_t body = m.vertex_body[v];
+        if (!searched[body]) return;
         const bool v_free = is_free(free, v);
         const double* lo = &world.v_lo[3 * int64_t{i}];
         const double* hi = &world.v_hi[3 * int64_t{i}];
@@ -557,6 +610,7 @@ void find_contact_candidates(const Model& m, const double* x0, const double* x1,
       ne,
       [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m.vertex_body[m.surface_edges[2 * int64_t{a}]];
+        if (!searched[body]) return;
         if (prims[body].any_free) {
           const double* own_lo = &own.e_lo[3 * int64_t{a}];
           const double* own_hi = &own.e_hi[3 * int64_t{a}];
@@ -587,7 +641,7 @@ void find_contact_candidates_brute_force(const Model& m, const double* x0, const
                                          double inflation, ContactCandidates& out, const uint8_t* moving) {
   const std::vector<uint8_t> free_storage = free_vertices(m, moving);
   const uint8_t* free = free_storage.data();
-  const SurfaceBoxes boxes(m, x0, x1, inflation);
+  const SurfaceBoxes boxes(m, body_primitives(m, free), nullptr, nullptr, x0, x1, inflation);
   // Same-body pairs compare body-frame boxes, others world boxes.
   auto frame = [&](int32_t body_a, int32_t body_b) -> const FrameBoxes& {
     return body_a == body_b ? boxes.body_frame() : boxes.world;
