@@ -12,6 +12,8 @@ namespace nexdyn {
 namespace {
 // Tets per parallel chunk: a Hessian chunk is 64 x 1.2 KB of output, a comfortable L2 working set.
 constexpr int64_t kTetGrain = 64;
+// Tets per Hessian block (elastic_assembly.hpp): 9.4 MB of slabs, enough work for every thread.
+constexpr int64_t kBlockTets = 8192;
 
 TetRange tet_range(const Model& m, const double* x) {
   return TetRange{x, m.tets.data(), m.Dm_inv.data(), m.rest_volume.data()};
@@ -46,6 +48,34 @@ ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>&
   for (int64_t v = 0; v <= nv; ++v)
     vertex_segment_[v] = std::lower_bound(pattern_.segment_value.begin(), pattern_.segment_value.end(),
                                           pattern_.col_ptr[3 * v]) - pattern_.segment_value.begin();
+  coupling_hessian_.assign(144 * num_groups_, 0.0);
+
+  // Blocks: tet t ends a closed run when no vertex of a tet <= t appears in a later tet; runs are
+  // merged up to kBlockTets (a longer run is a block of its own).
+  std::vector<int64_t> last_tet(nv, -1);
+  for (int64_t c = 0; c < 4 * nt; ++c) last_tet[model.tets[c]] = c / 4;
+  block_begin_.assign(1, 0);
+  int64_t reach = -1;
+  for (int64_t t = 0; t < nt; ++t) {
+    for (int c = 0; c < 4; ++c) reach = std::max(reach, last_tet[model.tets[4 * t + c]]);
+    if (reach != t) continue;
+    const int64_t start = block_begin_.back();
+    if (block_begin_.size() >= 2 && t + 1 - block_begin_[block_begin_.size() - 2] <= kBlockTets)
+      block_begin_.back() = t + 1;  // the run joins the open block
+    else if (t + 1 > start)
+      block_begin_.push_back(t + 1);
+  }
+  const int64_t num_blocks = static_cast<int64_t>(block_begin_.size()) - 1;
+  block_vertices_.assign(num_blocks, {});
+  for (int64_t v = 0; v < nv; ++v) {
+    if (last_tet[v] < 0) {
+      append_index(loose_vertices_, v);
+      continue;
+    }
+    const int64_t k = std::upper_bound(block_begin_.begin(), block_begin_.end(), last_tet[v]) -
+                      block_begin_.begin() - 1;
+    append_index(block_vertices_[k], v);
+  }
 }
 
 double ElasticAssembly::energy(const double* x) const {
@@ -116,31 +146,53 @@ double ElasticAssembly::energy_gradient(const double* x, double* grad) {
 
 void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* hessian_values,
                                        const ActiveSubset* subset) {
-  allocate_hessian_slabs();
   const TetRange range = tet_range(model_, x);
   const IndexRanges all_tets{{0, model_.num_tets}};
+  const IndexRanges all_vertices{{0, model_.num_vertices}};
   const IndexRanges& tets = subset ? subset->tets : all_tets;
-  for (const MaterialBatch& batch : model_.material_batches) {
-    const Material& mat = model_.materials[batch.material];
-    IndexRanges in_batch;
-    for (const auto& [b, e] : tets) {
-      const int64_t lo = std::max<int64_t>(b, batch.tet_begin), hi = std::min<int64_t>(e, batch.tet_end);
-      if (lo < hi) in_batch.emplace_back(lo, hi);
+  const IndexRanges& vertices = subset ? subset->vertices : all_vertices;
+  // The parts of two sorted range lists that overlap.
+  auto intersect = [](const IndexRanges& a, const IndexRanges& b) {
+    IndexRanges out;
+    for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+      const int64_t lo = std::max(a[i].first, b[j].first), hi = std::min(a[i].second, b[j].second);
+      if (lo < hi) out.emplace_back(lo, hi);
+      (a[i].second < b[j].second) ? ++i : ++j;
     }
-    parallel_for_ranges(in_batch, kTetGrain, [&](int64_t b, int64_t e) {
-      hessian_range(mat.model, range, b, e, mat.lame, tet_gradient_.data(), tet_hessian_.data());
+    return out;
+  };
+  auto gather_columns = [&](const IndexRanges& columns, const SlabSource& source) {
+    const IndexRanges segments = mapped_ranges(columns, [&](int64_t v) { return vertex_segment_[v]; });
+    parallel_for_ranges(segments, 2048, [&](int64_t b, int64_t e) {
+      gather_hessian_segments(pattern_, source, hessian_values, b, e);
     });
+  };
+
+  // Block by block: the slabs of its tets (those in the subset), then its vertices' columns.
+  SlabSource source{nullptr, 0, coupling_hessian_.data(), model_.num_tets};
+  for (size_t k = 0; k + 1 < block_begin_.size(); ++k) {
+    const IndexRanges block_tets = intersect(tets, {{block_begin_[k], block_begin_[k + 1]}});
+    if (block_tets.empty()) continue;
+    const int64_t first = block_begin_[k];
+    block_hessian_.resize(std::max<size_t>(block_hessian_.size(), 144 * (block_begin_[k + 1] - first)));
+    // The kernels index their output by tet: shift the tet arrays so block tet `first` is tet 0.
+    const TetRange shifted{x, range.tets + 4 * first, range.Dm_inv + 9 * first, range.volume + first};
+    for (const MaterialBatch& batch : model_.material_batches) {
+      const Material& mat = model_.materials[batch.material];
+      IndexRanges in_batch;
+      for (const auto& [b, e] : intersect(block_tets, {{batch.tet_begin, batch.tet_end}}))
+        in_batch.emplace_back(b - first, e - first);
+      parallel_for_ranges(in_batch, kTetGrain, [&](int64_t b, int64_t e) {
+        hessian_range(mat.model, shifted, b, e, mat.lame, tet_gradient_.data() + 12 * first,
+                      block_hessian_.data());
+      });
+    }
+    source.tets = block_hessian_.data();
+    source.first_tet = first;
+    gather_columns(intersect(vertices, block_vertices_[k]), source);
   }
-  if (!subset) {
-    parallel_for(model_.num_vertices, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); }, 1024);
-    gather_hessian(pattern_, tet_hessian_.data(), hessian_values);
-    return;
-  }
-  parallel_for_ranges(subset->vertices, 1024, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); });
-  const IndexRanges segments = mapped_ranges(subset->vertices, [&](int64_t v) { return vertex_segment_[v]; });
-  parallel_for_ranges(segments, 2048, [&](int64_t b, int64_t e) {
-    gather_hessian_segments(pattern_, tet_hessian_.data(), hessian_values, b, e);
-  });
+  gather_columns(intersect(vertices, loose_vertices_), source);  // coupling slabs only
+  parallel_for_ranges(vertices, 1024, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); });
 }
 
 }  // namespace nexdyn

@@ -40,18 +40,10 @@ class ElasticAssembly {
 
   const HessianPattern& pattern() const { return pattern_; }
   // (num_groups x 144) column-major 12x12 slabs of the coupling groups.
-  double* coupling_slabs() {
-    allocate_hessian_slabs();
-    return tet_hessian_.data() + 144 * int64_t{model_.num_tets};
-  }
+  double* coupling_slabs() { return coupling_hessian_.data(); }
 
  private:
   void gather_gradient(double* grad, int64_t vertex_begin, int64_t vertex_end) const;
-  // The Hessian slabs exist once a Hessian or a coupling slab is asked for (1.2 KB per tet that
-  // energy-only users, such as explicit schemes, never pay).
-  void allocate_hessian_slabs() {
-    if (tet_hessian_.empty()) tet_hessian_.assign(144 * (int64_t{model_.num_tets} + num_groups_), 0.0);
-  }
   double sum_tet_energies() const;
 
   const Model& model_;
@@ -62,8 +54,14 @@ class ElasticAssembly {
   std::vector<int64_t> vertex_segment_;  // (num_vertices + 1) first gather segment of each vertex
   std::vector<double> tet_energy_;       // (num_tets) slab
   std::vector<double> tet_gradient_;     // (num_tets x 12) slab
-  std::vector<double> tet_hessian_;      // ((num_tets + num_groups) x 144) slab, column-major
-                                         // 12x12: the tets', then the coupling groups'
+  // Hessian slabs are computed and gathered block by block: a block is a run of consecutive tets
+  // that shares no vertex with the other tets (whole bodies, in practice), of about kBlockTets
+  // tets, so only one block's slabs (1.2 KB per tet) exist at a time.
+  std::vector<int64_t> block_begin_;         // (num_blocks + 1) first tet of each block
+  std::vector<IndexRanges> block_vertices_;  // (num_blocks) the vertices of its tets
+  IndexRanges loose_vertices_;               // vertices of no tet (coupling groups only)
+  std::vector<double> block_hessian_;        // (largest block x 144) column-major 12x12 slabs
+  std::vector<double> coupling_hessian_;     // (num_groups x 144) slabs of the coupling groups
 };
 
 }  // namespace nexdyn

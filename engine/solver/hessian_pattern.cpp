@@ -99,19 +99,23 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
 
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values) {
   parallel_for(pattern.num_segments(), [&](int64_t begin, int64_t end) {
-    gather_hessian_segments(pattern, slab, values, begin, end);
+    gather_hessian_segments(pattern, SlabSource{slab}, values, begin, end);
   }, 2048);
 }
 
-void gather_hessian_segments(const HessianPattern& pattern, const double* slab, double* values,
+void gather_hessian_segments(const HessianPattern& pattern, const SlabSource& slab, double* values,
                              int64_t begin, int64_t end) {
+  const int64_t tets_end = 144 * slab.extra_from;
+  const int64_t tets_first = 144 * slab.first_tet;
   {
     for (int64_t g = begin; g < end; ++g) {
       // Rows past the segment's length read the (unused) lower triangle of a diagonal block:
       // still inside the tet's slab, and simpler than three loop variants.
       double s0 = 0.0, s1 = 0.0, s2 = 0.0;
       for (int64_t s = pattern.segment_source_ptr[g]; s < pattern.segment_source_ptr[g + 1]; ++s) {
-        const double* block = slab + pattern.segment_sources[s];
+        const int64_t source = pattern.segment_sources[s];
+        const double* block =
+            source < tets_end ? slab.tets + (source - tets_first) : slab.extra + (source - tets_end);
         s0 += block[0];
         s1 += block[1];
         s2 += block[2];

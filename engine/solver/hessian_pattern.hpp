@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace nexdyn {
@@ -49,8 +50,19 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
 // values = sum of the slab entries of every segment (parallel over segments; each value is summed
 // in tet order whatever the thread count).
 void gather_hessian(const HessianPattern& pattern, const double* slab, double* values);
-// The same over the segments [begin, end) only.
-void gather_hessian_segments(const HessianPattern& pattern, const double* slab, double* values,
+
+// Where a gather finds the slab entries: slab index s (tet * 144 + ...) is read at
+// tets[s - 144 * first_tet] below element extra_from, and at extra[s - 144 * extra_from] from it
+// on. A caller can so keep the slabs of a block of tets only, and other elements' slabs (coupling
+// groups, numbered after the tets) apart.
+struct SlabSource {
+  const double* tets = nullptr;
+  int64_t first_tet = 0;
+  const double* extra = nullptr;
+  int64_t extra_from = std::numeric_limits<int64_t>::max() / 144;
+};
+// gather_hessian over the segments [begin, end) only.
+void gather_hessian_segments(const HessianPattern& pattern, const SlabSource& slab, double* values,
                              int64_t begin, int64_t end);
 
 }  // namespace nexdyn
