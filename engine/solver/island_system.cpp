@@ -1,9 +1,14 @@
 // One island's linear system (see island_system.hpp).
 #include "engine/solver/island_system.hpp"
 
+#include <limits>
+#include <stdexcept>
 #include <utility>
 
 namespace nexdyn {
+
+static_assert(IslandSystem::kDenseDofs * IslandSystem::kDenseDofs <= 65536,
+              "a dense island's slots are 16-bit");
 
 IslandSystem::IslandSystem(std::vector<int32_t> vertices) : vertices_(std::move(vertices)) {}
 
@@ -11,8 +16,12 @@ bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, con
                                   const int32_t* local_index, int32_t island) {
   if (version == pattern_version_) return false;
   pattern_version_ = version;
+  if (global.nnz() > int64_t{std::numeric_limits<uint32_t>::max()})
+    throw std::length_error("the Newton matrix has more than 2^32 stored entries");
   const int64_t n = num_dofs();
-  std::vector<int64_t> col_ptr(n + 1, 0), row_idx;
+  const bool dense = n <= kDenseDofs;
+  std::vector<int64_t> col_ptr(dense ? 0 : n + 1, 0), row_idx;
+  std::vector<uint16_t> slots;
   value_source_.clear();
   for (size_t l = 0; l < vertices_.size(); ++l)
     for (int d = 0; d < 3; ++d) {
@@ -23,37 +32,41 @@ bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, con
         // The global pattern may keep contact blocks of pairs that are no longer in contact
         // (stored zeros, contact_pattern.hpp); those between islands are dropped here.
         if (island_of[rv] != island) continue;
-        row_idx.push_back(3 * int64_t{local_index[rv]} + r % 3);
-        value_source_.push_back(k);
+        const int64_t local_row = 3 * int64_t{local_index[rv]} + r % 3;
+        value_source_.push_back(static_cast<uint32_t>(k));
+        if (dense) slots.push_back(static_cast<uint16_t>(local_row + n * (3 * int64_t(l) + d)));
+        else row_idx.push_back(local_row);
       }
-      col_ptr[3 * l + d + 1] = static_cast<int64_t>(row_idx.size());
+      if (!dense) col_ptr[3 * l + d + 1] = static_cast<int64_t>(row_idx.size());
     }
-  values_.resize(row_idx.size());
   rhs_.resize(n);
   out_.resize(n);
+  if (dense) {
+    dense_.resize(n, n);
+    if (slots == dense_slot_) return false;
+    dense_slot_ = std::move(slots);
+    return true;
+  }
+  values_.resize(row_idx.size());
   if (col_ptr == col_ptr_ && row_idx == row_idx_) return false;
   col_ptr_ = std::move(col_ptr);
   row_idx_ = std::move(row_idx);
-  if (n <= kDenseDofs) {
-    dense_.resize(n, n);
-    return true;
-  }
   if (!cholmod_) cholmod_ = std::make_unique<CholmodSolver>(/*supernodal=*/n > kSimplicialDofs);
   cholmod_->analyze(n, col_ptr_.data(), row_idx_.data());
   return true;
 }
 
 bool IslandSystem::factorize(const double* global_values) {
-  for (size_t k = 0; k < values_.size(); ++k) values_[k] = global_values[value_source_[k]];
   if (cholmod_) {
+    for (size_t k = 0; k < values_.size(); ++k) values_[k] = global_values[value_source_[k]];
     if (cholmod_->factorize(values_.data())) return true;
     error_ = cholmod_->error();
     return false;
   }
   const int64_t n = num_dofs();
   dense_.setZero();
-  for (int64_t c = 0; c < n; ++c)
-    for (int64_t k = col_ptr_[c]; k < col_ptr_[c + 1]; ++k) dense_(row_idx_[k], c) = values_[k];
+  double* a = dense_.data();  // column-major: slot row + n col
+  for (size_t k = 0; k < value_source_.size(); ++k) a[dense_slot_[k]] = global_values[value_source_[k]];
   // In place: a second n x n copy would double the memory of the many small islands of a pile.
   const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Upper> llt(dense_);
   if (llt.info() == Eigen::Success) return true;

@@ -69,9 +69,14 @@ class IslandSystem {
  private:
   std::vector<int32_t> vertices_;
   int64_t pattern_version_ = -1;
-  std::vector<int64_t> col_ptr_, row_idx_;  // the island's upper triangle, local DOFs
-  std::vector<int64_t> value_source_;       // (local nnz) index into the global values
-  std::vector<double> values_, rhs_, out_;
+  // The island's upper triangle in local DOFs: each entry's index into the global values and
+  // (sparse islands) CSC arrays and values for CHOLMOD, or (dense islands) its place in dense_,
+  // row + n col: a dense island needs no CSC copy at all.
+  std::vector<uint32_t> value_source_;      // (local nnz)
+  std::vector<int64_t> col_ptr_, row_idx_;  // sparse
+  std::vector<double> values_;              // sparse
+  std::vector<uint16_t> dense_slot_;        // dense
+  std::vector<double> rhs_, out_;
   Eigen::MatrixXd dense_;  // dense islands: the matrix, then its factor U (A = U^T U) in place
   std::unique_ptr<CholmodSolver> cholmod_;
   std::string error_;
