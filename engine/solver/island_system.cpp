@@ -22,7 +22,18 @@ bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, con
   const bool dense = n <= kDenseDofs;
   std::vector<int64_t> col_ptr(dense ? 0 : n + 1, 0), row_idx;
   std::vector<uint16_t> slots;
+  // Exact sizes first: grown by doubling, the tables of a pile's islands held 1.5x their size.
+  int64_t count = 0;
+  for (int32_t v : vertices_)
+    for (int d = 0; d < 3; ++d) {
+      const int64_t c = 3 * int64_t{v} + d;
+      for (int64_t k = global.col_ptr[c]; k < global.col_ptr[c + 1]; ++k)
+        count += island_of[global.row_idx[k] / 3] == island;
+    }
   value_source_.clear();
+  value_source_.shrink_to_fit();
+  value_source_.reserve(count);
+  (dense ? slots.reserve(count) : row_idx.reserve(count));
   for (size_t l = 0; l < vertices_.size(); ++l)
     for (int d = 0; d < 3; ++d) {
       const int64_t c = 3 * int64_t{vertices_[l]} + d;
