@@ -93,8 +93,16 @@ void CholmodSolver::analyze(int64_t n, const int64_t* col_ptr, const int64_t* ro
 double CholmodSolver::factor_nonzeros() const { return common_->lnz; }
 double CholmodSolver::factor_flops() const { return common_->fl; }
 
+void CholmodSolver::release_numeric() {
+  if (!factor_ || !factor_->is_super || factor_->xtype == CHOLMOD_PATTERN) return;
+  // Supernodal numeric to supernodal symbolic: CHOLMOD frees the values and keeps the rest.
+  cholmod_l_change_factor(CHOLMOD_PATTERN, /*to_ll=*/1, /*to_super=*/1, /*to_packed=*/1,
+                          /*to_monotonic=*/1, factor_, common_);
+}
+
 double CholmodSolver::factor_bytes() const {
   if (!factor_) return 0.0;
+  if (factor_->is_super && factor_->xtype == CHOLMOD_PATTERN) return 8.0 * double(factor_->ssize);
   if (factor_->is_super) return 8.0 * (double(factor_->xsize) + double(factor_->ssize));
   return 16.0 * double(factor_->nzmax);  // simplicial: a value and a row index per entry
 }

@@ -36,6 +36,9 @@ class CholmodSolver {
 
   // Solves A x = b with the last factorisation. No allocation after the first call.
   void solve(const double* b, double* x);
+  // Frees a supernodal factor's values, keeping the analysis: the next factorize() allocates
+  // them again. For systems that sit idle (their values are recomputed on every use anyway).
+  void release_numeric();
 
   const std::string& error() const { return error_; }
 

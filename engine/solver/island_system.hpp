@@ -59,12 +59,17 @@ class IslandSystem {
   // out = H^-1 rhs on the island's DOFs (other entries of out are left alone).
   void solve(const double* global_rhs, double* global_out);
   const std::string& error() const { return error_; }
+  // Frees the factor of a supernodal island, keeping its analysis (CholmodSolver::release_numeric).
+  void release_numeric() {
+    if (cholmod_) cholmod_->release_numeric();
+  }
   // Memory of the factor [bytes] (a dense island keeps an n x n matrix).
   double factor_bytes() const {
     return cholmod_ ? cholmod_->factor_bytes() : 8.0 * static_cast<double>(dense_.size());
   }
 
-  int64_t last_used = 0;  // solve counter of the last use (newton.cpp evicts stale islands)
+  int64_t last_used = 0;        // solve counter of the last use (newton.cpp evicts stale islands)
+  int64_t last_iteration = 0;   // Newton iteration counter (over all solves) of the last use
 
  private:
   std::vector<int32_t> vertices_;

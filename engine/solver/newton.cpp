@@ -15,8 +15,11 @@ namespace {
 // Armijo sufficient-decrease constant and the smallest step length tried before giving up.
 constexpr double kArmijo = 1e-4;
 constexpr double kMinStepLength = 1e-10;
-// Solves a small island's cached system outlives its last use by.
+// Solves a small island's cached system outlives its last use by, and a big (supernodal) one's
+// analysis: two, so that the two systems of a step with kinematic vertices (free, then held)
+// keep theirs while they alternate.
 constexpr int64_t kKeepIslandSolves = 64;
+constexpr int64_t kKeepBigIslandSolves = 2;
 
 std::string format(const char* fmt, double a, double b = 0.0) {
   char buf[256];
@@ -129,6 +132,7 @@ IslandSystem& NewtonSolver::island_system(int32_t i) {
     system = bucket.back().get();
   }
   system->last_used = solve_count_;
+  system->last_iteration = iteration_count_;
   return *system;
 }
 
@@ -137,6 +141,11 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   active_system_.resize(count);
   active_ok_.assign(count, 1);
   for (int64_t a = 0; a < count; ++a) active_system_[a] = &island_system(active_[a]);
+  // The big islands not solved now (frozen, or from an earlier solve) give their factors back.
+  for (auto& [hash, bucket] : systems_)
+    for (auto& system : bucket)
+      if (system->last_iteration != iteration_count_ && system->num_dofs() > IslandSystem::kSimplicialDofs)
+        system->release_numeric();
   {
     // Symbolic analyses of islands whose block of the pattern changed (no BLAS: all parallel).
     ProfileScope scope(profile_, StepPhase::analysis);
@@ -183,15 +192,16 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   const int64_t n = static_cast<int64_t>(x.size());
   // Forget the islands that went unused for kKeepIslandSolves solves (a frozen island is not looked
   // up, so a shorter memory would throw away the analyses of bodies that merely rest; big systems
-  // hold big factors and rarely recur, so they go after one), and every convergence mark (unless
-  // told to keep them).
+  // rarely recur, and their analyses are big, so they go after kKeepBigIslandSolves), and every
+  // convergence mark (unless told to keep them).
   ++solve_count_;
   for (auto it = systems_.begin(); it != systems_.end();) {
     auto& bucket = it->second;
     bucket.erase(std::remove_if(bucket.begin(), bucket.end(),
                                 [&](const auto& s) {
                                   const int64_t keep =
-                                      s->num_dofs() <= IslandSystem::kSimplicialDofs ? kKeepIslandSolves : 1;
+                                      s->num_dofs() <= IslandSystem::kSimplicialDofs ? kKeepIslandSolves
+                                                                                     : kKeepBigIslandSolves;
                                   return s->last_used < solve_count_ - keep;
                                 }),
                  bucket.end());
@@ -229,6 +239,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
         return result;
       }
     std::fill(direction_.begin(), direction_.end(), 0.0);
+    ++iteration_count_;
     const int64_t failed = solve_islands(result.analyses);
     double factor_bytes = 0.0;
     for (const auto& [hash, bucket] : systems_)

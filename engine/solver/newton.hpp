@@ -105,6 +105,7 @@ class NewtonSolver {
   // unused for a whole solve.
   std::unordered_map<uint64_t, std::vector<std::unique_ptr<IslandSystem>>> systems_;
   int64_t solve_count_ = 0;
+  int64_t iteration_count_ = 0;  // Newton iterations over all solves
   bool keep_converged_ = false;
   double peak_factor_bytes_ = 0.0;
   std::vector<int32_t> active_;               // islands solved this iteration
