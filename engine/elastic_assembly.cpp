@@ -12,8 +12,6 @@ namespace nexdyn {
 namespace {
 // Tets per parallel chunk: a Hessian chunk is 64 x 1.2 KB of output, a comfortable L2 working set.
 constexpr int64_t kTetGrain = 64;
-// Tets per Hessian block (elastic_assembly.hpp): 9.4 MB of slabs, enough work for every thread.
-constexpr int64_t kBlockTets = 8192;
 
 TetRange tet_range(const Model& m, const double* x) {
   return TetRange{x, m.tets.data(), m.Dm_inv.data(), m.rest_volume.data()};
@@ -28,7 +26,8 @@ std::vector<int32_t> concatenated(const std::vector<int32_t>& a, const std::vect
 }
 }  // namespace
 
-ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups)
+ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups,
+                                 int64_t block_tets)
     : model_(model),
       pattern_(build_tet_hessian_pattern(model.num_vertices, coupling_groups.empty()
                                                                  ? model.tets
@@ -51,7 +50,7 @@ ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>&
   coupling_hessian_.assign(144 * num_groups_, 0.0);
 
   // Blocks: tet t ends a closed run when no vertex of a tet <= t appears in a later tet; runs are
-  // merged up to kBlockTets (a longer run is a block of its own).
+  // merged up to block_tets (a longer run is a block of its own).
   std::vector<int64_t> last_tet(nv, -1);
   for (int64_t c = 0; c < 4 * nt; ++c) last_tet[model.tets[c]] = c / 4;
   block_begin_.assign(1, 0);
@@ -60,7 +59,7 @@ ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>&
     for (int c = 0; c < 4; ++c) reach = std::max(reach, last_tet[model.tets[4 * t + c]]);
     if (reach != t) continue;
     const int64_t start = block_begin_.back();
-    if (block_begin_.size() >= 2 && t + 1 - block_begin_[block_begin_.size() - 2] <= kBlockTets)
+    if (block_begin_.size() >= 2 && t + 1 - block_begin_[block_begin_.size() - 2] <= block_tets)
       block_begin_.back() = t + 1;  // the run joins the open block
     else if (t + 1 > start)
       block_begin_.push_back(t + 1);
@@ -171,8 +170,8 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
   // Block by block: the slabs of its tets (those in the subset), then its vertices' columns.
   SlabSource source{nullptr, 0, coupling_hessian_.data(), model_.num_tets};
   for (size_t k = 0; k + 1 < block_begin_.size(); ++k) {
-    const IndexRanges block_tets = intersect(tets, {{block_begin_[k], block_begin_[k + 1]}});
-    if (block_tets.empty()) continue;
+    const IndexRanges in_block = intersect(tets, {{block_begin_[k], block_begin_[k + 1]}});
+    if (in_block.empty()) continue;
     const int64_t first = block_begin_[k];
     block_hessian_.resize(std::max<size_t>(block_hessian_.size(), 144 * (block_begin_[k + 1] - first)));
     // The kernels index their output by tet: shift the tet arrays so block tet `first` is tet 0.
@@ -180,7 +179,7 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
     for (const MaterialBatch& batch : model_.material_batches) {
       const Material& mat = model_.materials[batch.material];
       IndexRanges in_batch;
-      for (const auto& [b, e] : intersect(block_tets, {{batch.tet_begin, batch.tet_end}}))
+      for (const auto& [b, e] : intersect(in_block, {{batch.tet_begin, batch.tet_end}}))
         in_batch.emplace_back(b - first, e - first);
       parallel_for_ranges(in_batch, kTetGrain, [&](int64_t b, int64_t e) {
         hessian_range(mat.model, shifted, b, e, mat.lame, tet_gradient_.data() + 12 * first,

@@ -19,7 +19,10 @@ class ElasticAssembly {
   // coupling_groups: (num_groups x 4) vertex ids of extra constant Hessian terms that are not
   // tets (joints, engine/joints.hpp). Their vertex pairs are in pattern(), and their 12x12 slabs
   // (coupling_slabs(), zero until written) are added to every gradient_hessian().
-  explicit ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups = {});
+  // block_tets: the size Hessian blocks are merged up to (see the members; tests use small ones).
+  static constexpr int64_t kBlockTets = 8192;
+  explicit ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups = {},
+                           int64_t block_tets = kBlockTets);
 
   // Total elastic energy at positions x (3n); +inf when a neo-Hookean tet is inverted.
   double energy(const double* x) const;
@@ -55,8 +58,9 @@ class ElasticAssembly {
   std::vector<double> tet_energy_;       // (num_tets) slab
   std::vector<double> tet_gradient_;     // (num_tets x 12) slab
   // Hessian slabs are computed and gathered block by block: a block is a run of consecutive tets
-  // that shares no vertex with the other tets (whole bodies, in practice), of about kBlockTets
-  // tets, so only one block's slabs (1.2 KB per tet) exist at a time.
+  // that shares no vertex with the other tets (whole bodies, in practice), merged up to
+  // kBlockTets tets (9.4 MB of slabs, work enough for every thread), so only one block's slabs
+  // (1.2 KB per tet) exist at a time.
   std::vector<int64_t> block_begin_;         // (num_blocks + 1) first tet of each block
   std::vector<IndexRanges> block_vertices_;  // (num_blocks) the vertices of its tets
   IndexRanges loose_vertices_;               // vertices of no tet (coupling groups only)
