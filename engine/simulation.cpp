@@ -377,6 +377,7 @@ void Simulation::measure(StepStats& stats) const {
   stats.contacts = 0;
   stats.min_distance = std::numeric_limits<double>::infinity();
   if (contact_) {
+    // Leaves the barrier's candidates at a static search of x: the next step's first is free.
     const BarrierPotential::Summary summary = contact_->summarize(x.data());
     stats.barrier_energy = potential_.barrier_stiffness() * summary.barrier;
     stats.contacts = summary.active;

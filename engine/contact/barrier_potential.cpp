@@ -246,10 +246,10 @@ double BarrierPotential::min_squared_distance(const double* x) {
   return min_d;
 }
 
-BarrierPotential::Summary BarrierPotential::summarize(const double* x) const {
+BarrierPotential::Summary BarrierPotential::summarize(const double* x) {
   Summary summary;
-  ContactCandidates near;
-  find_contact_candidates(model_, x, nullptr, 0.5 * dhat_, near);
+  find_candidates(x, nullptr);
+  const ContactCandidates& near = candidates_;
   summary.barrier = reduce_pairs(model_, near, x, dhat2_, 0.0, SumEnergy{});
   struct CountActive {
     double dhat2;

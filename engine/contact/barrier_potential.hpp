@@ -79,16 +79,17 @@ class BarrierPotential {
   // one); +inf without candidates.
   double min_squared_distance(const double* x);
 
-  // The contact columns of stats.csv at x, from a fresh candidate search (the candidate list the
-  // solver uses is left alone): the barrier sum, the number of pairs closer than dhat, and the
-  // exact smallest distance over all pairs and planes [m] (+inf when there are none). Pairs
-  // farther than dhat are found by widening the search until the closest one is certain.
+  // The contact columns of stats.csv at x: the barrier sum, the number of pairs closer than dhat,
+  // and the exact smallest distance over all pairs and planes [m] (+inf when there are none).
+  // The near pairs come from find_candidates(x, nullptr), which the list is left at: the solver's
+  // next static search at the same x (the next step's first) is then free. Pairs farther than
+  // dhat are found by widening the search until the closest one is certain.
   struct Summary {
     double barrier = 0.0;
     int64_t active = 0;
     double min_distance = 0.0;
   };
-  Summary summarize(const double* x) const;
+  Summary summarize(const double* x);
 
   // The active set at x: candidates closer than dhat, merged into stencils (see the top).
   void build_active_set(const double* x);
