@@ -32,10 +32,26 @@ inline bool touches(const int32_t* stencil, const uint8_t* mask) {
   return false;
 }
 
-// Appends index i to sorted ranges (i increasing), extending the last range when adjacent.
-inline void append_index(IndexRanges& ranges, int64_t i) {
-  if (!ranges.empty() && ranges.back().second == i) ++ranges.back().second;
-  else ranges.emplace_back(i, i + 1);
+// Appends [begin, end) to sorted ranges (begin at or past the last end), extending the last range
+// when adjacent; an empty range is skipped.
+inline void append_range(IndexRanges& ranges, int64_t begin, int64_t end) {
+  if (begin == end) return;
+  if (!ranges.empty() && ranges.back().second == begin) ranges.back().second = end;
+  else ranges.emplace_back(begin, end);
+}
+
+// Appends index i to sorted ranges (i increasing).
+inline void append_index(IndexRanges& ranges, int64_t i) { append_range(ranges, i, i + 1); }
+
+// The parts of two sorted range lists that overlap.
+inline IndexRanges intersect_ranges(const IndexRanges& a, const IndexRanges& b) {
+  IndexRanges out;
+  for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+    const int64_t lo = std::max(a[i].first, b[j].first), hi = std::min(a[i].second, b[j].second);
+    if (lo < hi) out.emplace_back(lo, hi);
+    (a[i].second < b[j].second) ? ++i : ++j;
+  }
+  return out;
 }
 
 // Calls body(begin, end) over the ranges cut into pieces of at most `grain` items, in parallel.

@@ -58,10 +58,9 @@ ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>&
   for (int64_t t = 0; t < nt; ++t) {
     for (int c = 0; c < 4; ++c) reach = std::max(reach, last_tet[model.tets[4 * t + c]]);
     if (reach != t) continue;
-    const int64_t start = block_begin_.back();
     if (block_begin_.size() >= 2 && t + 1 - block_begin_[block_begin_.size() - 2] <= block_tets)
-      block_begin_.back() = t + 1;  // the run joins the open block
-    else if (t + 1 > start)
+      block_begin_.back() = t + 1;  // the run joins the last block
+    else
       block_begin_.push_back(t + 1);
   }
   const int64_t num_blocks = static_cast<int64_t>(block_begin_.size()) - 1;
@@ -150,16 +149,6 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
   const IndexRanges all_vertices{{0, model_.num_vertices}};
   const IndexRanges& tets = subset ? subset->tets : all_tets;
   const IndexRanges& vertices = subset ? subset->vertices : all_vertices;
-  // The parts of two sorted range lists that overlap.
-  auto intersect = [](const IndexRanges& a, const IndexRanges& b) {
-    IndexRanges out;
-    for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
-      const int64_t lo = std::max(a[i].first, b[j].first), hi = std::min(a[i].second, b[j].second);
-      if (lo < hi) out.emplace_back(lo, hi);
-      (a[i].second < b[j].second) ? ++i : ++j;
-    }
-    return out;
-  };
   auto gather_columns = [&](const IndexRanges& columns, const SlabSource& source) {
     const IndexRanges segments = mapped_ranges(columns, [&](int64_t v) { return vertex_segment_[v]; });
     parallel_for_ranges(segments, 2048, [&](int64_t b, int64_t e) {
@@ -170,7 +159,7 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
   // Block by block: the slabs of its tets (those in the subset), then its vertices' columns.
   SlabSource source{nullptr, 0, coupling_hessian_.data(), model_.num_tets};
   for (size_t k = 0; k + 1 < block_begin_.size(); ++k) {
-    const IndexRanges in_block = intersect(tets, {{block_begin_[k], block_begin_[k + 1]}});
+    const IndexRanges in_block = intersect_ranges(tets, {{block_begin_[k], block_begin_[k + 1]}});
     if (in_block.empty()) continue;
     const int64_t first = block_begin_[k];
     block_hessian_.resize(std::max<size_t>(block_hessian_.size(), 144 * (block_begin_[k + 1] - first)));
@@ -179,7 +168,7 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
     for (const MaterialBatch& batch : model_.material_batches) {
       const Material& mat = model_.materials[batch.material];
       IndexRanges in_batch;
-      for (const auto& [b, e] : intersect(in_block, {{batch.tet_begin, batch.tet_end}}))
+      for (const auto& [b, e] : intersect_ranges(in_block, {{batch.tet_begin, batch.tet_end}}))
         in_batch.emplace_back(b - first, e - first);
       parallel_for_ranges(in_batch, kTetGrain, [&](int64_t b, int64_t e) {
         hessian_range(mat.model, shifted, b, e, mat.lame, tet_gradient_.data() + 12 * first,
@@ -188,9 +177,9 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
     }
     source.tets = block_hessian_.data();
     source.first_tet = first;
-    gather_columns(intersect(vertices, block_vertices_[k]), source);
+    gather_columns(intersect_ranges(vertices, block_vertices_[k]), source);
   }
-  gather_columns(intersect(vertices, loose_vertices_), source);  // coupling slabs only
+  gather_columns(intersect_ranges(vertices, loose_vertices_), source);  // coupling slabs only
   parallel_for_ranges(vertices, 1024, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); });
 }
 

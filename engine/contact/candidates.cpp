@@ -167,16 +167,11 @@ struct FrameBoxes {
   FrameBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const uint8_t* wanted,
              const double* x0, const double* x1, const Eigen::Vector3d* shift, double r) {
     IndexRanges sv, edges, triangles;
-    auto append = [](IndexRanges& ranges, int64_t begin, int64_t end) {
-      if (begin == end) return;
-      if (!ranges.empty() && ranges.back().second == begin) ranges.back().second = end;
-      else ranges.emplace_back(begin, end);
-    };
     for (size_t b = 0; b < prims.size(); ++b) {
       if (wanted && !wanted[b]) continue;
-      append(sv, prims[b].sv_begin, prims[b].sv_end);
-      append(edges, prims[b].e_begin, prims[b].e_end);
-      append(triangles, prims[b].t_begin, prims[b].t_end);
+      append_range(sv, prims[b].sv_begin, prims[b].sv_end);
+      append_range(edges, prims[b].e_begin, prims[b].e_end);
+      append_range(triangles, prims[b].t_begin, prims[b].t_end);
     }
     v_lo.resize(3 * m.surface_vertices.size());
     v_hi.resize(3 * m.surface_vertices.size());

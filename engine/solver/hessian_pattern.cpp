@@ -97,12 +97,6 @@ HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector
   return pattern;
 }
 
-void gather_hessian(const HessianPattern& pattern, const double* slab, double* values) {
-  parallel_for(pattern.num_segments(), [&](int64_t begin, int64_t end) {
-    gather_hessian_segments(pattern, SlabSource{slab}, values, begin, end);
-  }, 2048);
-}
-
 void gather_hessian_segments(const HessianPattern& pattern, const SlabSource& slab, double* values,
                              int64_t begin, int64_t end) {
   const int64_t tets_end = 144 * slab.extra_from;

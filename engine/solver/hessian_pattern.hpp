@@ -3,9 +3,9 @@
 // entries that are summed into it.
 //
 // Numeric phase (every Newton iteration): each tet writes its projected 12x12 block into its own
-// slab of 144 doubles (in parallel, no sharing), then `gather` sums slab entries into the CSC
-// values column by column, always in tet order. No atomics, so the matrix is bitwise the same
-// whatever the number of threads.
+// slab of 144 doubles (in parallel, no sharing), then gather_hessian_segments sums slab entries
+// into the CSC values column by column, always in tet order. No atomics, so the matrix is bitwise
+// the same whatever the number of threads.
 #pragma once
 
 #include <cstdint>
@@ -47,10 +47,6 @@ struct HessianPattern : CscPattern {
 // std::length_error beyond HessianPattern::kMaxTets tets.
 HessianPattern build_tet_hessian_pattern(int32_t num_vertices, const std::vector<int32_t>& tets);
 
-// values = sum of the slab entries of every segment (parallel over segments; each value is summed
-// in tet order whatever the thread count).
-void gather_hessian(const HessianPattern& pattern, const double* slab, double* values);
-
 // Where a gather finds the slab entries: slab index s (tet * 144 + ...) is read at
 // tets[s - 144 * first_tet] below element extra_from, and at extra[s - 144 * extra_from] from it
 // on. A caller can so keep the slabs of a block of tets only, and other elements' slabs (coupling
@@ -61,7 +57,9 @@ struct SlabSource {
   const double* extra = nullptr;
   int64_t extra_from = std::numeric_limits<int64_t>::max() / 144;
 };
-// gather_hessian over the segments [begin, end) only.
+// values = the sum of the slab entries of each segment of [begin, end) (each value summed in tet
+// order; callers run disjoint segment ranges in parallel, so the result is the same whatever the
+// thread count).
 void gather_hessian_segments(const HessianPattern& pattern, const SlabSource& slab, double* values,
                              int64_t begin, int64_t end);
 
