@@ -257,4 +257,30 @@ bool IncrementalPotential::end_iteration(const double* x) {
   return changed;
 }
 
+void IncrementalPotential::save(CheckpointWriter& out) const {
+  out.put(kappa_);
+  out.put(kappa_max_);
+  out.put<uint8_t>(kappa_from_contact_);
+  out.put_vector(contact_pattern_ ? contact_pattern_->flat_contact_pairs() : std::vector<int32_t>{});
+}
+
+void IncrementalPotential::restore(CheckpointReader& in) {
+  kappa_ = in.get<double>();
+  kappa_max_ = in.get<double>();
+  kappa_from_contact_ = in.get<uint8_t>() != 0;
+  if (!(std::isfinite(kappa_) && kappa_ >= 0.0 && std::isfinite(kappa_max_) && kappa_max_ >= 0.0))
+    in.fail("barrier stiffness is not a finite number >= 0");
+  const std::vector<int32_t> pairs = in.get_vector<int32_t>();
+  if (pairs.size() % 2 != 0) in.fail("odd number of contact pattern ids");
+  if (!contact_pattern_) {
+    if (!pairs.empty()) in.fail("contact pattern pairs for a scene without contact");
+    return;
+  }
+  try {
+    contact_pattern_->restore_pairs(pairs);
+  } catch (const std::invalid_argument& e) {
+    in.fail(e.what());
+  }
+}
+
 }  // namespace nexdyn

@@ -41,6 +41,7 @@
 #include "engine/joints.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/model.hpp"
+#include "engine/output/checkpoint_file.hpp"
 #include "engine/solver/contact_pattern.hpp"
 #include "engine/step_profile.hpp"
 
@@ -121,6 +122,11 @@ class IncrementalPotential {
   // this file).
   void remove_contact_acceleration(const double* x, std::vector<double>& a);
   BarrierPotential* contact() const { return contact_; }
+
+  // What carries over from step to step besides the State: the barrier stiffness and the
+  // contact pattern (engine/output/checkpoint_file.hpp).
+  void save(CheckpointWriter& out) const;
+  void restore(CheckpointReader& in);
 
  private:
   // Inertia and gravity energy of vertices [begin, end).

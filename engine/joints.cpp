@@ -139,4 +139,21 @@ void JointSet::apply_transpose(const double* per_joint, double* out) const {
   }
 }
 
+void JointSet::save(CheckpointWriter& out) const {
+  out.put(weight_);
+  out.put_vector(stiffness_);
+  std::vector<double> multipliers(3 * multiplier_.size());
+  for (size_t j = 0; j < multiplier_.size(); ++j) Eigen::Vector3d::Map(&multipliers[3 * j]) = multiplier_[j];
+  out.put_vector(multipliers);
+}
+
+void JointSet::restore(CheckpointReader& in, double* slabs) {
+  const int64_t num = static_cast<int64_t>(joints_.size());
+  weight_ = in.get<double>();
+  stiffness_ = in.get_vector<double>(num);
+  const std::vector<double> multipliers = in.get_vector<double>(3 * num);
+  for (int64_t j = 0; j < num; ++j) multiplier_[j] = Eigen::Vector3d::Map(&multipliers[3 * j]);
+  if (num > 0) write_slabs(slabs);
+}
+
 }  // namespace nexdyn

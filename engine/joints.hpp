@@ -19,6 +19,7 @@
 #pragma once
 
 #include "engine/model.hpp"
+#include "engine/output/checkpoint_file.hpp"
 
 #include <Eigen/Core>
 
@@ -63,6 +64,10 @@ class JointSet {
   // lambda_j <- lambda_j - k_j c_j(x).
   void update_multipliers(const double* x);
   void set_multiplier(int64_t j, const Eigen::Vector3d& lambda) { multiplier_[j] = lambda; }
+
+  // Stiffnesses and multipliers for a checkpoint; restore also rewrites the coupling slabs.
+  void save(CheckpointWriter& out) const;
+  void restore(CheckpointReader& in, double* slabs);
 
   // Force of joint j on its vertices at a minimiser, lambda_j - k_j c_j(x) [N]; for tests.
   Eigen::Vector3d force(const double* x, int64_t j) const;

@@ -108,4 +108,17 @@ void KinematicTargets::motion_to_targets(const double* x, double* p) const {
     }
 }
 
+void KinematicTargets::save(CheckpointWriter& out) const {
+  out.put(scale_);
+  out.put_vector(stiffness_);
+  out.put_vector(lambda_);
+}
+
+void KinematicTargets::restore(CheckpointReader& in) {
+  const int64_t num = static_cast<int64_t>(vertices_.size());
+  scale_ = in.get<double>();
+  stiffness_ = in.get_vector<double>(num);
+  lambda_ = in.get_vector<double>(3 * num);
+}
+
 }  // namespace nexdyn

@@ -17,6 +17,7 @@
 #pragma once
 
 #include "engine/model.hpp"
+#include "engine/output/checkpoint_file.hpp"
 #include "engine/solver/hessian_pattern.hpp"
 
 #include <Eigen/Core>
@@ -39,6 +40,9 @@ class KinematicTargets {
   // scale s (E = inertia + s Psi), which turns the multipliers into forces.
   void set_stiffness(double ratio, double scale);
   void stiffen(double factor);
+  // Stiffnesses and multipliers for a checkpoint.
+  void save(CheckpointWriter& out) const;
+  void restore(CheckpointReader& in);
 
   // max_i |x_i - t_i| [m].
   double max_violation(const double* x) const;

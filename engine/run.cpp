@@ -1,11 +1,16 @@
 // The run loop behind `nexdyn run` (see run.hpp).
 #include "engine/run.hpp"
 
+#include "engine/output/checkpoint_file.hpp"
 #include "engine/output/frame_writer.hpp"
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <csignal>
+#include <iterator>
+#include <memory>
 #include <cmath>
 #include <fstream>
 #include <stdexcept>
@@ -76,8 +81,8 @@ void remove_old_frames(const fs::path& frames_dir) {
 }  // namespace
 
 std::string profile_line(const RunSummary& summary) {
-  if (summary.steps_done <= 0) return "";
-  const double per_step_ms = 1e3 / double(summary.steps_done);
+  if (steps_run(summary) <= 0) return "";
+  const double per_step_ms = 1e3 / double(steps_run(summary));
   std::string line;
   char buf[96];
   double phases = 0.0;
@@ -92,7 +97,7 @@ std::string profile_line(const RunSummary& summary) {
   char head[64];
   std::snprintf(head, sizeof head, "time per step: %.4g ms =", summary.step_seconds * per_step_ms);
   std::snprintf(buf, sizeof buf, "; output %.3g ms per step; Newton iterations per step: %.3g",
-                summary.output_seconds * per_step_ms, double(summary.newton_iterations) / double(summary.steps_done));
+                summary.output_seconds * per_step_ms, double(summary.newton_iterations) / double(steps_run(summary)));
   std::string tail = buf;
   std::snprintf(buf, sizeof buf, "; peak Cholesky factors %.3g MB", summary.peak_factor_bytes / (1024.0 * 1024.0));
   return head + line + tail + buf;
@@ -129,16 +134,34 @@ std::string timings_row(int64_t step, const StepProfile& before, const StepProfi
 // An output file written as NAME.partial.csv while the run goes, renamed to NAME.csv at the end.
 class RowFile {
  public:
-  RowFile(const fs::path& out, const std::string& name, const std::string& header)
-      : partial_(out / (name + ".partial.csv")), final_(out / (name + ".csv")), file_(partial_, std::ios::trunc) {
+  // A new file with its header; or, with `resume_bytes` >= 0, the partial file of an earlier run
+  // cut back to that many bytes and appended to.
+  RowFile(const fs::path& out, const std::string& name, const std::string& header, int64_t resume_bytes = -1)
+      : partial_(out / (name + ".partial.csv")), final_(out / (name + ".csv")) {
     std::error_code ec;
+    if (resume_bytes >= 0) {
+      const auto size = fs::file_size(partial_, ec);
+      if (ec || static_cast<int64_t>(size) < resume_bytes)
+        throw CheckpointError(partial_.string() + " is shorter than when the checkpoint was written");
+      fs::resize_file(partial_, static_cast<uintmax_t>(resume_bytes), ec);
+      if (ec) throw std::runtime_error(partial_.string() + ": cannot truncate: " + ec.message());
+      file_.open(partial_, std::ios::app);
+    } else {
+      file_.open(partial_, std::ios::trunc);
+    }
     fs::remove(final_, ec);
     if (!file_) throw std::runtime_error(partial_.string() + ": cannot open for writing");
-    write(header);
+    if (resume_bytes < 0) write(header);
   }
   void write(const std::string& row) {
     file_ << row << '\n';
     if (!file_) throw std::runtime_error(partial_.string() + ": write failed (disk full?)");
+  }
+  // Bytes written so far, all handed to the operating system.
+  int64_t bytes() {
+    file_.flush();
+    if (!file_) throw std::runtime_error(partial_.string() + ": write failed (disk full?)");
+    return static_cast<int64_t>(file_.tellp());
   }
   // Closes the file; renames it into place when `complete`.
   void finish(bool complete) {
@@ -154,41 +177,178 @@ class RowFile {
   std::ofstream file_;
 };
 
-}  // namespace
-
-RunSummary run_scene(const Scene& scene, const RunOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  const int64_t total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
-  const fs::path out = options.out_dir;
-  const fs::path frames_dir = out / "frames";
-  std::error_code ec;
-  fs::create_directories(frames_dir, ec);
-  if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
-  remove_old_frames(frames_dir);
-  fs::remove(out / "scene.pvd", ec);
-
-  RowFile stats(out, "stats", std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation"));
-  RowFile timings(out, "timings", timings_header());
-
-  Simulation simulation(scene);
+// What a checkpoint records of the run, besides the Simulation.
+struct RunRecord {
+  fs::path scene_file;       // absolute
+  uint32_t scene_crc = 0;    // of the scene file's bytes
+  uint32_t model_crc = 0;    // of the model built from it (meshes included)
+  std::string integrator;    // --integrator override, or empty
+  int64_t total_steps = 0;
+  int64_t checkpoint_every = 0;
+  int64_t steps_done = 0;
+  int64_t stats_bytes = 0, timings_bytes = 0;
   std::vector<std::pair<double, std::string>> pvd_frames;
+};
+
+uint32_t file_crc(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw CheckpointError(path.string() + ": cannot read the scene file");
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return crc32(bytes.data(), bytes.size());
+}
+
+uint32_t model_crc(const Model& m) {
+  auto add = [](uint32_t crc, const auto& v) { return crc32(v.data(), v.size() * sizeof(v[0]), crc); };
+  uint32_t crc = add(0, m.rest_positions);
+  crc = add(crc, m.tets);
+  crc = add(crc, m.mass);
+  return add(crc, m.dirichlet);
+}
+
+constexpr const char* kRunTag = "nexdyn run";
+
+void put_record(CheckpointWriter& out, const RunRecord& r) {
+  out.put_string(kRunTag);
+  out.put_string(r.scene_file.string());
+  out.put(r.scene_crc);
+  out.put(r.model_crc);
+  out.put_string(r.integrator);
+  out.put(r.total_steps);
+  out.put(r.checkpoint_every);
+  out.put(r.steps_done);
+  out.put(r.stats_bytes);
+  out.put(r.timings_bytes);
+  out.put<uint64_t>(r.pvd_frames.size());
+  for (const auto& [time, name] : r.pvd_frames) {
+    out.put(time);
+    out.put_string(name);
+  }
+}
+
+RunRecord get_record(CheckpointReader& in) {
+  if (in.get_string() != kRunTag) in.fail("not a checkpoint of `nexdyn run`");
+  RunRecord r;
+  r.scene_file = in.get_string();
+  r.scene_crc = in.get<uint32_t>();
+  r.model_crc = in.get<uint32_t>();
+  r.integrator = in.get_string();
+  r.total_steps = in.get<int64_t>();
+  r.checkpoint_every = in.get<int64_t>();
+  r.steps_done = in.get<int64_t>();
+  r.stats_bytes = in.get<int64_t>();
+  r.timings_bytes = in.get<int64_t>();
+  if (r.steps_done < 0 || r.steps_done > r.total_steps || r.checkpoint_every < 0 || r.stats_bytes < 0 ||
+      r.timings_bytes < 0)
+    in.fail("inconsistent run record");
+  const uint64_t frames = in.get<uint64_t>();
+  if (frames > static_cast<uint64_t>(r.steps_done) + 1) in.fail("more frames than steps");
+  for (uint64_t k = 0; k < frames; ++k) {
+    const double time = in.get<double>();
+    r.pvd_frames.emplace_back(time, in.get_string());
+  }
+  return r;
+}
+
+fs::path checkpoint_folder(const fs::path& out) { return out / "checkpoints"; }
+
+// The checkpoints in `out`, newest first.
+std::vector<fs::path> list_checkpoints(const fs::path& out) {
+  std::vector<fs::path> found;
+  std::error_code ec;
+  if (!fs::is_directory(checkpoint_folder(out), ec)) return found;
+  for (const auto& entry : fs::directory_iterator(checkpoint_folder(out), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("checkpoint_", 0) == 0 && entry.path().extension() == ".ckpt") found.push_back(entry.path());
+  }
+  std::sort(found.begin(), found.end(), [](const fs::path& a, const fs::path& b) { return a.filename() > b.filename(); });
+  return found;
+}
+
+void remove_checkpoints(const fs::path& out) {
+  std::error_code ec;
+  for (const fs::path& path : list_checkpoints(out)) fs::remove(path, ec);
+}
+
+// SIGINT / SIGTERM: the run stops after the step under way, with a checkpoint. The handler puts
+// the default action back, so a second signal ends the process at once.
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void on_stop_signal(int signal) {
+  g_stop_signal = signal;
+  std::signal(signal, SIG_DFL);
+}
+
+class StopSignals {
+ public:
+  StopSignals() {
+    g_stop_signal = 0;
+    previous_int_ = std::signal(SIGINT, on_stop_signal);
+    previous_term_ = std::signal(SIGTERM, on_stop_signal);
+  }
+  ~StopSignals() {
+    std::signal(SIGINT, previous_int_);
+    std::signal(SIGTERM, previous_term_);
+  }
+  int received() const { return g_stop_signal; }
+
+ private:
+  void (*previous_int_)(int) = SIG_DFL;
+  void (*previous_term_)(int) = SIG_DFL;
+};
+
+// Writes a checkpoint of `snapshot` (a Simulation saved after record.steps_done) and keeps the
+// newest two; returns its path.
+fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const std::string& snapshot) {
+  CheckpointWriter payload;
+  put_record(payload, record);
+  std::string bytes = payload.bytes();
+  bytes += snapshot;
+  char name[64];
+  std::snprintf(name, sizeof name, "checkpoint_%09lld.ckpt", static_cast<long long>(record.steps_done));
+  std::error_code ec;
+  fs::create_directories(checkpoint_folder(out), ec);
+  const fs::path path = checkpoint_folder(out) / name;
+  write_checkpoint_file(path, bytes);
+  const std::vector<fs::path> all = list_checkpoints(out);
+  for (size_t k = 2; k < all.size(); ++k) fs::remove(all[k], ec);
+  return path;
+}
+
+// Steps `simulation` from record.steps_done + 1 to record.total_steps, writing rows, frames and
+// checkpoints into `out`. `stats` and `timings` are open at the end of record.steps_done's rows.
+RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simulation, RunRecord record,
+                     RowFile& stats, RowFile& timings, bool show_progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const fs::path frames_dir = out / "frames";
   auto write_frame = [&](int64_t frame) {
     const State& s = simulation.state();
     if (scene.output.vtu) {
       const std::string name = frame_file_name(frame, "vtu");
       write_file_atomically(frames_dir / name, vtu_document(scene.model, s.x, s.v));
-      pvd_frames.emplace_back(s.time, "frames/" + name);
-      write_file_atomically(out / "scene.pvd", pvd_document(pvd_frames));
+      record.pvd_frames.emplace_back(s.time, "frames/" + name);
+      write_file_atomically(out / "scene.pvd", pvd_document(record.pvd_frames));
     }
     if (scene.output.obj)
       write_file_atomically(frames_dir / frame_file_name(frame, "obj"), obj_document(scene.model, s.x));
   };
 
   RunSummary summary;
-  ProgressBar progress(options.progress, total_steps);
-  write_frame(0);
+  summary.first_step = record.steps_done + 1;
+  summary.steps_done = record.steps_done;
+  StopSignals signals;
+  ProgressBar progress(show_progress, record.total_steps);
+  if (record.steps_done == 0) write_frame(0);
+  // The state before the step under way: what a checkpoint holds if that step fails.
+  CheckpointWriter snapshot;
+  auto checkpoint = [&](const std::string& state) {
+    record.stats_bytes = stats.bytes();
+    record.timings_bytes = timings.bytes();
+    summary.checkpoint = write_checkpoint(out, record, state).string();
+  };
   StepProfile before = simulation.profile();
-  for (int64_t step = 1; step <= total_steps; ++step) {
+  for (int64_t step = record.steps_done + 1; step <= record.total_steps; ++step) {
+    snapshot = CheckpointWriter();
+    simulation.save(snapshot);
     const StepOutcome outcome = simulation.step();
     if (outcome.status != StepStatus::ok) {
       summary.ok = false;
@@ -196,6 +356,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
       std::snprintf(buf, sizeof(buf), "step %lld (t = %.6g s) failed [%s]: ", static_cast<long long>(step),
                     simulation.state().time + scene.time.dt, std::string(step_status_name(outcome.status)).c_str());
       summary.message = buf + outcome.message;
+      checkpoint(snapshot.bytes());
       break;
     }
     const double step_seconds = simulation.last_stats().wall_seconds;
@@ -208,16 +369,111 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
     summary.output_seconds += output_seconds;
     timings.write(timings_row(step, before, simulation.profile(), step_seconds, output_seconds));
     before = simulation.profile();
-    summary.steps_done = step;
-    progress.update(step, simulation.state().time, step == total_steps);
+    summary.steps_done = record.steps_done = step;
+    progress.update(step, simulation.state().time, step == record.total_steps);
+    const bool stop = signals.received() != 0 && step < record.total_steps;
+    if (stop || (record.checkpoint_every > 0 && step % record.checkpoint_every == 0 && step < record.total_steps)) {
+      snapshot = CheckpointWriter();
+      simulation.save(snapshot);
+      checkpoint(snapshot.bytes());
+    }
+    if (stop) {
+      summary.interrupted = true;
+      summary.signal = signals.received();
+      break;
+    }
   }
   progress.finish();
-  stats.finish(summary.ok);
-  timings.finish(summary.ok);
+  const bool complete = summary.ok && !summary.interrupted;
+  stats.finish(complete);
+  timings.finish(complete);
+  if (complete) {
+    remove_checkpoints(out);
+    summary.checkpoint.clear();
+  }
   summary.profile = simulation.profile();
   summary.peak_factor_bytes = simulation.peak_factor_bytes();
   summary.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
+}
+
+}  // namespace
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  const fs::path out = options.out_dir;
+  const fs::path frames_dir = out / "frames";
+  std::error_code ec;
+  fs::create_directories(frames_dir, ec);
+  if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
+  remove_old_frames(frames_dir);
+  remove_checkpoints(out);
+  fs::remove(out / "scene.pvd", ec);
+
+  RunRecord record;
+  record.scene_file = fs::absolute(scene.file);
+  record.scene_crc = file_crc(scene.file);
+  record.model_crc = model_crc(scene.model);
+  record.integrator = options.integrator;
+  record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
+  record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
+
+  RowFile stats(out, "stats", std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation"));
+  RowFile timings(out, "timings", timings_header());
+  Simulation simulation(scene);
+  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress);
+}
+
+RunSummary resume_run(const fs::path& out, bool progress) {
+  std::error_code ec;
+  if (!fs::exists(out / "stats.partial.csv", ec)) {
+    if (fs::exists(out / "stats.csv", ec))
+      throw CheckpointError(out.string() + ": the run finished (stats.csv is complete); nothing to resume");
+    throw CheckpointError(out.string() + ": no run to resume here (no stats.partial.csv)");
+  }
+  const std::vector<fs::path> found = list_checkpoints(out);
+  if (found.empty()) throw CheckpointError(out.string() + ": no checkpoint in " + checkpoint_folder(out).string());
+  for (const fs::path& path : found) {
+    std::string payload;
+    RunRecord record;
+    std::unique_ptr<Scene> scene;
+    std::unique_ptr<Simulation> simulation;
+    try {
+      payload = read_checkpoint_file(path);
+      CheckpointReader in(payload, path.string());
+      record = get_record(in);
+      // The scene must be the one the run started from: a changed file is not this run.
+      if (file_crc(record.scene_file) != record.scene_crc)
+        throw std::runtime_error(record.scene_file.string() + " changed since the run started; resuming it "
+                                 "would not continue the same run");
+      scene = std::make_unique<Scene>(load_scene(record.scene_file));
+      if (model_crc(scene->model) != record.model_crc)
+        throw std::runtime_error(record.scene_file.string() + ": a mesh changed since the run started; "
+                                 "resuming would not continue the same run");
+      if (!record.integrator.empty()) {
+        const auto preset = integrator_preset(record.integrator);
+        if (!preset) in.fail("unknown integrator \"" + record.integrator + "\"");
+        scene->time.integrator = *preset;
+      }
+      simulation = std::make_unique<Simulation>(*scene);
+      simulation->restore(in);
+      in.expect_end();
+      if (simulation->state().step != record.steps_done) in.fail("the state is not that of the recorded step");
+    } catch (const CheckpointError& e) {
+      std::fprintf(stderr, "nexdyn: skipping checkpoint %s\n", e.what());
+      continue;
+    }
+    std::unique_ptr<RowFile> stats, timings;
+    try {
+      stats = std::make_unique<RowFile>(out, "stats", "", record.stats_bytes);
+      timings = std::make_unique<RowFile>(out, "timings", "", record.timings_bytes);
+    } catch (const CheckpointError& e) {
+      std::fprintf(stderr, "nexdyn: skipping checkpoint %s: %s\n", path.string().c_str(), e.what());
+      continue;
+    }
+    // Frames past the checkpoint are written again; the ones before are listed in its record.
+    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress);
+  }
+  throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");
 }
 
 }  // namespace nexdyn

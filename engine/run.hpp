@@ -1,10 +1,19 @@
 // `nexdyn run`: steps a scene and writes stats.csv, timings.csv, frames and scene.pvd into the
-// output folder.
+// output folder; `nexdyn resume`: continues such a run from its newest valid checkpoint.
 //
 // Honest outputs: stats.csv and timings.csv only exist once the run has finished every step;
 // while running (or after a failure) the rows so far are in stats.partial.csv and
 // timings.partial.csv. Frames and scene.pvd are renamed into
 // place whole, so every file that exists is complete.
+//
+// Checkpoints (engine/output/checkpoint_file.hpp) go to DIR/checkpoints/checkpoint_NNNNNNNNN.ckpt
+// every output.checkpoint_every steps, on SIGINT and SIGTERM (after the step under way; a second
+// signal ends the process at once), and when a step fails (the last good state). The newest two
+// are kept; a run that finishes removes them. Each holds the Simulation (State and solver
+// history), how far stats.partial.csv and timings.partial.csv had got, the frames listed in
+// scene.pvd, and the scene file's path and checksum. Resuming truncates the partial files back
+// to that point and takes the same steps again, so a run killed at any moment and resumed
+// writes the same stats.csv (but for wall_seconds) and the same frames as one never stopped.
 #pragma once
 
 #include "engine/scene/scene.hpp"
@@ -30,11 +39,17 @@ struct RunOptions {
   std::filesystem::path out_dir;  // created if missing
   int64_t steps = -1;             // -1: the scene's time.steps
   bool progress = false;          // draw a progress bar on stderr
+  int64_t checkpoint_every = -1;  // -1: the scene's output.checkpoint_every; 0: only on a signal
+  std::string integrator;         // --integrator given to run (recorded for resume), or empty
 };
 
 struct RunSummary {
   bool ok = true;
-  int64_t steps_done = 0;
+  bool interrupted = false;      // stopped by SIGINT or SIGTERM (ok stays true)
+  int signal = 0;                // which
+  int64_t first_step = 1;        // the first step this process took (> 1 after a resume)
+  int64_t steps_done = 0;        // the last completed step
+  std::string checkpoint;        // the newest checkpoint written, if any
   double wall_seconds = 0.0;
   std::string message;  // why the run stopped early
   // Where the steps' time went: the sum of the steps' wall_seconds, its split by phase, and the
@@ -46,6 +61,9 @@ struct RunSummary {
   double peak_factor_bytes = 0.0;  // Cholesky factors held at once, at most
 };
 
+// The steps this process took.
+inline int64_t steps_run(const RunSummary& s) { return s.steps_done - s.first_step + 1; }
+
 // "time per step: 12.3 ms = broad phase 1.2 + CCD 0.3 + ... + other 0.1; output 0.4 ms per step;
 // Newton iterations per step: 4.5; peak Cholesky factors 1.2 MB", or "" when no step was done.
 std::string profile_line(const RunSummary& summary);
@@ -53,5 +71,10 @@ std::string profile_line(const RunSummary& summary);
 std::string stats_row(const StepStats& s);
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options);
+
+// Continues the run in `out_dir` from its newest valid checkpoint (a checkpoint that fails its
+// checks is skipped with a line on stderr). Throws CheckpointError when there is none, when the
+// run had finished, or when the scene file changed since.
+RunSummary resume_run(const std::filesystem::path& out_dir, bool progress);
 
 }  // namespace nexdyn

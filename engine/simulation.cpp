@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/QR>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -388,4 +389,43 @@ void Simulation::measure(StepStats& stats) const {
   stats.momentum = momentum;
 }
 
+void Simulation::save(CheckpointWriter& out) const {
+  out.put(state_.step);
+  out.put(state_.time);
+  out.put_vector(state_.x);
+  out.put_vector(state_.v);
+  out.put_vector(state_.a);
+  potential_.save(out);
+  out.put<uint8_t>(joint_stiffness_set_);
+  out.put(joint_stiffening_);
+  joints_.save(out);
+  out.put(kinematic_stiffening_);
+  kinematic_.save(out);
+}
+
+void Simulation::restore(CheckpointReader& in) {
+  const int64_t n = model_.num_dofs();
+  State state;
+  state.step = in.get<int64_t>();
+  state.time = in.get<double>();
+  state.x = in.get_vector<double>(n);
+  state.v = in.get_vector<double>(n);
+  state.a = in.get_vector<double>(n);
+  if (state.step < 0 || !std::isfinite(state.time)) in.fail("negative step or non-finite time");
+  for (const std::vector<double>* field : {&state.x, &state.v, &state.a})
+    if (!std::all_of(field->begin(), field->end(), [](double value) { return std::isfinite(value); }))
+      in.fail("non-finite positions, velocities or accelerations");
+  state.x_tilde = state.x;
+  potential_.restore(in);
+  joint_stiffness_set_ = in.get<uint8_t>() != 0;
+  joint_stiffening_ = in.get<double>();
+  joints_.restore(in, elastic_.coupling_slabs());
+  kinematic_stiffening_ = in.get<double>();
+  kinematic_.restore(in);
+  kinematic_on_target_ = false;
+  newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
+  state_ = std::move(state);
+}
+
 }  // namespace nexdyn
+

@@ -70,6 +70,13 @@ class Simulation {
   // The largest memory the Newton solver's Cholesky factors held at once [bytes] (0: none).
   double peak_factor_bytes() const { return newton_ ? newton_->peak_factor_bytes() : 0.0; }
 
+  // Everything the next steps depend on: the State, and what the solver carries from step to
+  // step (barrier and joint stiffnesses, multipliers, the contact pattern). A simulation of the
+  // same scene restored from it takes the same steps bit for bit.
+  void save(CheckpointWriter& out) const;
+  // CheckpointError naming the fault when the data does not fit this scene.
+  void restore(CheckpointReader& in);
+
  private:
   // Held vertices at their prescribed positions (and velocities, accelerations) at time t;
   // kinematic ones too unless `kinematic` is false.

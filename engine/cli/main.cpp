@@ -1,5 +1,7 @@
 // nexdyn: the command-line program (DESIGN.md section 6).
 //   nexdyn run SCENE.json [--out DIR] [--steps N] [--threads K] [--integrator NAME] [--quiet]
+//              [--checkpoint-every K]
+//   nexdyn resume DIR [--threads K] [--quiet]
 //   nexdyn check SCENE.json
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
@@ -11,6 +13,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <memory>
@@ -72,6 +75,16 @@ int main(int argc, char** argv) {
   run->add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
   run->add_option("--integrator", integrator, "Override the scene's integrator preset");
   run->add_flag("--quiet", quiet, "No progress bar or summary");
+  int64_t checkpoint_every = -1;
+  run->add_option("--checkpoint-every", checkpoint_every,
+                  "Steps between checkpoints (default: the scene's output.checkpoint_every, 100; 0: only "
+                  "on SIGINT/SIGTERM)")
+      ->check(CLI::NonNegativeNumber);
+  std::string resume_dir;
+  CLI::App* resume = app.add_subcommand("resume", "Continue a stopped run from its newest valid checkpoint");
+  resume->add_option("dir", resume_dir, "The run's output folder")->required();
+  resume->add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  resume->add_flag("--quiet", quiet, "No progress bar or summary");
 
   std::string check_path;
   CLI::App* check = app.add_subcommand("check", "Validate a scene and print its size");
@@ -108,23 +121,42 @@ int main(int argc, char** argv) {
       std::printf("ok\n");
       return 0;
     }
-    Scene scene = load_scene(scene_path);
-    apply_integrator_override(scene, integrator);
-    RunOptions options;
-    options.out_dir = out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(out_dir);
-    options.steps = steps;
-    options.progress = !quiet && isatty(STDERR_FILENO);
-    if (!quiet) print_summary(scene);
-    const RunSummary summary = run_scene(scene, options);
+    RunSummary summary;
+    std::filesystem::path out;
+    if (*resume) {
+      out = resume_dir;
+      if (!quiet) std::printf("resuming the run in %s\n", out.string().c_str());
+      summary = resume_run(out, !quiet && isatty(STDERR_FILENO));
+      if (!quiet) std::printf("resumed after step %lld\n", static_cast<long long>(summary.first_step - 1));
+    } else {
+      Scene scene = load_scene(scene_path);
+      apply_integrator_override(scene, integrator);
+      RunOptions options;
+      options.out_dir = out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(out_dir);
+      options.steps = steps;
+      options.progress = !quiet && isatty(STDERR_FILENO);
+      options.checkpoint_every = checkpoint_every;
+      options.integrator = integrator;
+      out = options.out_dir;
+      if (!quiet) print_summary(scene);
+      summary = run_scene(scene, options);
+    }
+    const std::string partial = (out / "stats.partial.csv").string();
     if (!summary.ok) {
-      std::fprintf(stderr, "nexdyn: error: %s (rows of the %lld completed steps are in %s)\n",
-                   summary.message.c_str(), static_cast<long long>(summary.steps_done),
-                   (options.out_dir / "stats.partial.csv").string().c_str());
+      std::fprintf(stderr, "nexdyn: error: %s (rows of the %lld completed steps are in %s; the last good "
+                   "state is in %s)\n", summary.message.c_str(), static_cast<long long>(summary.steps_done),
+                   partial.c_str(), summary.checkpoint.c_str());
       return 2;
     }
+    if (summary.interrupted) {
+      std::fprintf(stderr, "nexdyn: interrupted by %s after step %lld; checkpoint %s; continue with: nexdyn "
+                   "resume %s\n", summary.signal == SIGINT ? "SIGINT" : "SIGTERM",
+                   static_cast<long long>(summary.steps_done), summary.checkpoint.c_str(), out.string().c_str());
+      return 128 + summary.signal;
+    }
     if (!quiet) {
-      std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(summary.steps_done),
-                  summary.wall_seconds, options.out_dir.string().c_str());
+      std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(steps_run(summary)),
+                  summary.wall_seconds, out.string().c_str());
       std::printf("%s\n", profile_line(summary).c_str());
     }
     return 0;

@@ -222,8 +222,10 @@ void read_friction_pairs(const json& j, const Where& w, const std::map<std::stri
 }
 
 void read_output(const json& j, const Where& w, OutputSettings& output) {
-  check_keys(j, w, {"every", "formats"});
+  check_keys(j, w, {"every", "formats", "checkpoint_every"});
   if (j.contains("every")) output.every = integer(j["every"], w["every"], 1);
+  if (j.contains("checkpoint_every"))
+    output.checkpoint_every = integer(j["checkpoint_every"], w["checkpoint_every"], 0);
   if (j.contains("formats")) {
     const json& f = j["formats"];
     if (!f.is_array()) w["formats"].fail("expected an array of \"vtu\" and/or \"obj\"", f);

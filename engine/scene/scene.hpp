@@ -61,6 +61,7 @@ struct ContactSettings {
 
 struct OutputSettings {
   int64_t every = 1;  // write a frame every this many steps
+  int64_t checkpoint_every = 100;  // write a checkpoint every this many steps (0: only on a signal)
   bool vtu = true;
   bool obj = false;
 };

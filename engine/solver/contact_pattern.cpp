@@ -31,6 +31,29 @@ int64_t ContactPattern::block_value(int32_t i, int64_t column) const {
   return it - merged_.row_idx.begin();
 }
 
+std::vector<int32_t> ContactPattern::flat_contact_pairs() const {
+  std::vector<int32_t> flat;
+  flat.reserve(2 * contact_pairs_.size());
+  for (const auto& [j, i] : contact_pairs_) {
+    flat.push_back(j);
+    flat.push_back(i);
+  }
+  return flat;
+}
+
+void ContactPattern::restore_pairs(const std::vector<int32_t>& flat) {
+  const int32_t nv = static_cast<int32_t>(elastic_.num_dofs / 3);
+  std::vector<std::pair<int32_t, int32_t>> pairs;
+  pairs.reserve(flat.size() / 2);
+  for (size_t k = 0; k + 1 < flat.size(); k += 2) {
+    if (!(flat[k + 1] >= 0 && flat[k + 1] < flat[k] && flat[k] < nv))
+      throw std::invalid_argument("contact pattern pair (" + std::to_string(flat[k]) + ", " +
+                                  std::to_string(flat[k + 1]) + ") is not a vertex pair J > I of this model");
+    pairs.emplace_back(flat[k], flat[k + 1]);
+  }
+  rebuild(std::move(pairs));
+}
+
 void ContactPattern::rebuild(std::vector<std::pair<int32_t, int32_t>> pairs) {
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());

@@ -38,6 +38,11 @@ class ContactPattern {
   // Incremented by every rebuild of the pattern.
   int64_t version() const { return version_; }
   int64_t num_contact_pairs() const { return static_cast<int64_t>(contact_pairs_.size()); }
+  // The pairs the pattern holds depend on the run's history, and the pattern decides the
+  // factorisation's ordering and so the last bits of every solve: a checkpoint keeps them.
+  // Flat (J, I) ids; restore_pairs rebuilds the same pattern from them.
+  std::vector<int32_t> flat_contact_pairs() const;
+  void restore_pairs(const std::vector<int32_t>& flat);
 
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
   // of their slabs (laid out as given to update()).
