@@ -153,8 +153,11 @@ class RowFile {
     if (!file_) throw std::runtime_error(partial_.string() + ": cannot open for writing");
     if (resume_bytes < 0) write(header);
   }
+  // Each row goes to the operating system at once: `tail -f` follows the run, and a killed run
+  // leaves the rows of every step it finished.
   void write(const std::string& row) {
     file_ << row << '\n';
+    file_.flush();
     if (!file_) throw std::runtime_error(partial_.string() + ": write failed (disk full?)");
   }
   // Bytes written so far, all handed to the operating system.
