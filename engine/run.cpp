@@ -20,6 +20,10 @@ namespace nexdyn {
 
 namespace fs = std::filesystem;
 
+std::string stats_header(const Scene& scene) {
+  return std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation") + ",retries";
+}
+
 std::string stats_row(const StepStats& s) {
   char buf[1024];
   std::snprintf(buf, sizeof(buf),
@@ -33,7 +37,7 @@ std::string stats_row(const StepStats& s) {
     std::snprintf(buf, sizeof(buf), ",%.17g", *s.joint_violation);
     row += buf;
   }
-  return row;
+  return row + "," + std::to_string(s.retries);
 }
 
 namespace {
@@ -420,7 +424,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
   record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
 
-  RowFile stats(out, "stats", std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation"));
+  RowFile stats(out, "stats", stats_header(scene));
   RowFile timings(out, "timings", timings_header());
   Simulation simulation(scene);
   return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress);

@@ -68,6 +68,8 @@ inline int64_t steps_run(const RunSummary& s) { return s.steps_done - s.first_st
 // Newton iterations per step: 4.5; peak Cholesky factors 1.2 MB", or "" when no step was done.
 std::string profile_line(const RunSummary& summary);
 
+// stats.csv's header for this scene: kStatsHeader, joint_violation with joints, then retries.
+std::string stats_header(const Scene& scene);
 std::string stats_row(const StepStats& s);
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options);

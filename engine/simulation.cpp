@@ -127,13 +127,60 @@ bool Simulation::explicit_acceleration(const std::vector<double>& x, std::vector
 
 StepOutcome Simulation::step() {
   const auto start = std::chrono::steady_clock::now();
+  int iterations = 0, retries = 0;
+  const double t_next = state_.time + scene_.time.dt;
+  StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
+  stats_.retries = retries;
+  if (outcome.status != StepStatus::ok) return outcome;
+  state_.time = t_next;
+  ++state_.step;
+
+  stats_.step = state_.step;
+  stats_.time = state_.time;
+  stats_.newton_iterations = iterations;
+  {
+    ProfileScope scope(&profile_, StepPhase::measure);
+    measure(stats_);
+  }
+  stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, int& iterations, int& retries) {
+  const int halvings = scene_.solver.substep_halvings;
+  if (halvings == 0) return advance(dt, t_next, iterations);
+  // The state to go back to if this attempt fails.
+  CheckpointWriter before;
+  save(before);
+  const double t_start = state_.time;
+  StepOutcome outcome = advance(dt, t_next, iterations);
+  if (outcome.status == StepStatus::ok) return outcome;
+  {
+    CheckpointReader in(before.bytes(), "the state before the failed step");
+    restore(in);
+  }
+  if (level == halvings) {
+    char where[160];
+    std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
+                  halvings, halvings == 1 ? "" : "s", dt, t_start);
+    outcome.message += where;
+    return outcome;
+  }
+  // Two steps of half the size; each may split again.
+  ++retries;
+  const double t_mid = t_start + 0.5 * (t_next - t_start);
+  outcome = advance_or_split(t_mid - t_start, t_mid, level + 1, iterations, retries);
+  if (outcome.status != StepStatus::ok) return outcome;
+  state_.time = t_mid;
+  return advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
+}
+
+StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
+  dt_ = dt;
   const IntegratorParams& integrator = scene_.time.integrator;
-  const double dt = scene_.time.dt;
-  const double t_next = state_.time + dt;
   StepOutcome outcome;
 
   predict_x_tilde(integrator, dt, state_.x, state_.v, state_.a, state_.x_tilde);
-  int iterations = 0;
   if (integrator.is_explicit()) {
     x_next_ = state_.x_tilde;
     prescribe(t_next, x_next_, nullptr, nullptr);
@@ -195,17 +242,6 @@ StepOutcome Simulation::step() {
   }
   prescribe(t_next, state_.x, integrator.is_static ? nullptr : &state_.v,
             integrator.is_static ? nullptr : &state_.a);
-  state_.time = t_next;
-  ++state_.step;
-
-  stats_.step = state_.step;
-  stats_.time = state_.time;
-  stats_.newton_iterations = iterations;
-  {
-    ProfileScope scope(&profile_, StepPhase::measure);
-    measure(stats_);
-  }
-  stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return outcome;
 }
 
@@ -242,7 +278,7 @@ NewtonResult Simulation::solve_step(int& iterations) {
 }
 
 NewtonResult Simulation::solve_with_joints(int& iterations) {
-  const double dt = scene_.time.dt;
+  const double dt = dt_;
   const NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
   if (!joints_.empty() && !joint_stiffness_set_) {
     // The potential scale is fixed for a run (dt and the scheme do not change).
@@ -281,7 +317,7 @@ void Simulation::lag_friction(const std::vector<double>& x) {
   contact_->find_candidates(x.data(), nullptr);
   contact_->build_active_set(x.data());
   ProfileScope friction_scope(&profile_, StepPhase::friction);
-  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), scene_.time.dt);
+  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), dt_);
 }
 
 void Simulation::constrain_initial_acceleration() {

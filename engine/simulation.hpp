@@ -46,6 +46,7 @@ struct StepStats {
   double min_distance = 0.0;
   double wall_seconds = 0.0;
   std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
+  int retries = 0;  // failed attempts of this step, each retried as two of half the dt (last column)
 };
 
 struct StepOutcome {
@@ -58,6 +59,9 @@ class Simulation {
   // Keeps references to scene.model; the scene must outlive the simulation.
   explicit Simulation(const Scene& scene);
 
+  // One step of the scene's dt. A failed attempt (Newton, factorisation, NaN) puts the state back
+  // and is retried as two steps of half the dt, recursively, solver.substep_halvings deep at
+  // most; the next step tries the full dt again. On failure the state is the one before the step.
   StepOutcome step();
   const State& state() const { return state_; }
   const StepStats& last_stats() const { return stats_; }
@@ -85,6 +89,11 @@ class Simulation {
   // a = M^-1 f(x) on free vertices; false if f is not finite.
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
 
+  // One attempt at the step from state_.time to t_next = state_.time + dt (state_.time and
+  // state_.step are left to the caller); adds its Newton iterations to `iterations`.
+  StepOutcome advance(double dt, double t_next, int& iterations);
+  // advance(), and on failure the state put back and the interval taken in two halves.
+  StepOutcome advance_or_split(double dt, double t_next, int level, int& iterations, int& retries);
   // Newton's starting point for the step to t_next (written into x_next_).
   StepOutcome start_point(double t_next);
   // The Newton solves of the step: with kinematic vertices, first until they can be moved onto
@@ -116,6 +125,7 @@ class Simulation {
   double kinematic_stiffening_ = 1.0;      // the same for the kinematic vertices
   bool kinematic_on_target_ = false;       // this step's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
+  double dt_ = 0.0;  // [s] of the attempt under way (the scene's dt, or a part of it)
 };
 
 }  // namespace nexdyn

@@ -156,7 +156,12 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
 }
 
 void read_solver(const json& j, const Where& w, SolverSettings& solver) {
-  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance"});
+  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings"});
+  if (j.contains("substep_halvings"))
+    solver.substep_halvings = static_cast<int>(integer(j["substep_halvings"], w["substep_halvings"], 0));
+  if (solver.substep_halvings > kMaxSubstepHalvings)
+    w["substep_halvings"].fail("expected at most " + std::to_string(kMaxSubstepHalvings) + " (dt / 65536)",
+                               j["substep_halvings"]);
   if (j.contains("tolerance")) solver.tolerance = positive(j["tolerance"], w["tolerance"]);
   if (j.contains("joint_tolerance")) solver.joint_tolerance = positive(j["joint_tolerance"], w["joint_tolerance"]);
   if (j.contains("max_iterations"))

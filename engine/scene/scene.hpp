@@ -29,11 +29,14 @@ struct TimeSettings {
   bool consistent_initial_acceleration = true;  // a0 = M^-1 f(x0); false: a0 = 0
 };
 
+inline constexpr int kMaxSubstepHalvings = 16;
+
 struct SolverSettings {
   double tolerance = 1e-5;  // [m/s] Newton increment divided by dt
   int max_iterations = 100;
   double joint_tolerance = 0.0;  // [m] largest joint violation accepted; 0 = default, 1e-9 of
                                  // the bodies' bounding-box diagonal
+  int substep_halvings = 4;  // a failed step is retried as two of half the dt, this deep at most
 };
 
 struct ContactSettings {

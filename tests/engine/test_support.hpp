@@ -59,6 +59,22 @@ inline CommandResult run_cli(const std::string& args) {
   return result;
 }
 
+// Field k (0-based) of a comma-separated row.
+inline std::string csv_field(const std::string& row, int k) {
+  std::stringstream in(row);
+  std::string field;
+  for (int i = 0; i <= k; ++i) std::getline(in, field, ',');
+  return field;
+}
+
+// A stats.csv row without its wall_seconds field (the 14th): what must not depend on timing.
+inline std::string without_wall_seconds(const std::string& row) {
+  size_t begin = 0;
+  for (int i = 0; i < 13 && begin != std::string::npos; ++i) begin = row.find(',', begin) + 1;
+  const size_t end = row.find(',', begin);
+  return row.substr(0, begin) + (end == std::string::npos ? "" : row.substr(end + 1));
+}
+
 inline std::vector<std::string> read_lines(const std::filesystem::path& path) {
   std::ifstream in(path);
   std::vector<std::string> lines;
