@@ -166,13 +166,20 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
     outcome.message += where;
     return outcome;
   }
-  // Two steps of half the size; each may split again.
+  // Two steps of half the size; each may split again. If either fails for good, the state goes
+  // back to where this interval started.
   ++retries;
   const double t_mid = t_start + 0.5 * (t_next - t_start);
   outcome = advance_or_split(t_mid - t_start, t_mid, level + 1, iterations, retries);
-  if (outcome.status != StepStatus::ok) return outcome;
-  state_.time = t_mid;
-  return advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
+  if (outcome.status == StepStatus::ok) {
+    state_.time = t_mid;
+    outcome = advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
+  }
+  if (outcome.status != StepStatus::ok) {
+    CheckpointReader in(before.bytes(), "the state before the failed step");
+    restore(in);
+  }
+  return outcome;
 }
 
 StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {

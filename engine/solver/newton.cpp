@@ -3,6 +3,9 @@
 
 #include "engine/parallel.hpp"
 
+#include <Eigen/Core>
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -25,6 +28,26 @@ std::string format(const char* fmt, double a, double b = 0.0) {
   char buf[256];
   std::snprintf(buf, sizeof(buf), fmt, a, b);
   return buf;
+}
+
+// "body B (scene entry E)" of vertex v, for messages that say where something went wrong.
+std::string body_of_vertex(const Model& model, int32_t v) {
+  const int32_t b = model.vertex_body[v];
+  return "body " + std::to_string(b) + " (\"" + (model.bodies[b].obstacle ? "obstacles" : "bodies") + "\" entry " +
+         std::to_string(model.bodies[b].scene_entry) + ")";
+}
+
+// Where x inverts a tet: "tet T of body B ... is inverted (volume <= 0)", or "" when none is.
+std::string inverted_tet(const Model& model, const double* x) {
+  for (int32_t t = 0; t < model.num_tets; ++t) {
+    const int32_t* v = &model.tets[4 * int64_t{t}];
+    const Eigen::Vector3d x0 = Eigen::Vector3d::Map(x + 3 * int64_t{v[0]});
+    Eigen::Matrix3d ds;
+    for (int k = 0; k < 3; ++k) ds.col(k) = Eigen::Vector3d::Map(x + 3 * int64_t{v[k + 1]}) - x0;
+    if (!(ds.determinant() > 0.0))
+      return "tet " + std::to_string(t) + " of " + body_of_vertex(model, v[0]) + " is inverted (volume <= 0)";
+  }
+  return "";
 }
 }  // namespace
 
@@ -216,8 +239,9 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   potential_.begin_solve(x.data());
   if (!std::isfinite(potential_.energy(x.data()))) {
     result.status = StepStatus::non_finite;
-    result.message = "the starting point of the step has infinite energy (an inverted tet or "
-                     "touching contact)";
+    const std::string where = inverted_tet(model_, x.data());
+    result.message = "the starting point of the step has infinite energy: " +
+                     (where.empty() ? std::string("a contact pair touches (distance 0)") : where);
     return result;
   }
   for (int it = 0; it < settings.max_iterations; ++it) {
@@ -233,11 +257,14 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     potential_.gradient_hessian(x.data(), grad_.data(), values_.data(), &subset_);
     eliminate_dirichlet(grad_.data(), values_.data());
     for (const auto& [begin, end] : subset_.vertices)
-      if (!std::all_of(&grad_[3 * begin], &grad_[3 * end], [](double g) { return std::isfinite(g); })) {
-        result.status = StepStatus::non_finite;
-        result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it);
-        return result;
-      }
+      for (int64_t i = 3 * int64_t{begin}; i < 3 * int64_t{end}; ++i)
+        if (!std::isfinite(grad_[i])) {
+          const int32_t v = static_cast<int32_t>(i / 3);
+          result.status = StepStatus::non_finite;
+          result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it) +
+                           ", at vertex " + std::to_string(v) + " of " + body_of_vertex(model_, v);
+          return result;
+        }
     std::fill(direction_.begin(), direction_.end(), 0.0);
     ++iteration_count_;
     const int64_t failed = solve_islands(result.analyses);
