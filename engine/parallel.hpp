@@ -3,19 +3,44 @@
 // Results must not depend on the number of threads. So ranges are cut into chunks whose size is
 // fixed by the caller (never by the scheduler), every chunk writes its own partial result, and the
 // partials are combined in chunk order. A sum over 1 thread and over 8 threads is the same double.
+//
+// ThreadSanitizer builds (NEXDYN_PARALLEL_STD_THREADS, set by CMake for NEXDYN_SANITIZE=thread)
+// run the same chunks on plain std::threads instead: Debian's TBB is not built with TSan, so TSan
+// cannot see the ordering its scheduler provides and would report races that are not there,
+// while thread start and join it does see. The chunks, and so the results, are the same.
 #pragma once
 
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/partitioner.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
+#include <thread>
 #include <utility>
 #include <vector>
 
 namespace nexdyn {
+
+#if NEXDYN_PARALLEL_STD_THREADS
+// chunk(c) for c in [0, num_chunks) on up to max_allowed_parallelism threads.
+template <typename Chunk>
+void std_thread_chunks(int64_t num_chunks, Chunk&& chunk) {
+  const int64_t threads = std::min<int64_t>(
+      num_chunks, static_cast<int64_t>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  std::atomic<int64_t> next{0};
+  auto work = [&] {
+    for (int64_t c = next.fetch_add(1); c < num_chunks; c = next.fetch_add(1)) chunk(c);
+  };
+  std::vector<std::thread> pool;
+  for (int64_t t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+}
+#endif
 
 // Default number of items per chunk: large enough to amortise scheduling, small enough to balance
 // two cores on the smallest scenes we care about.
@@ -29,9 +54,13 @@ void parallel_for(int64_t n, Body&& body, int64_t grain = kDefaultGrain) {
     body(int64_t{0}, n);
     return;
   }
+#if NEXDYN_PARALLEL_STD_THREADS
+  std_thread_chunks((n + grain - 1) / grain, [&](int64_t c) { body(c * grain, std::min(n, (c + 1) * grain)); });
+#else
   tbb::parallel_for(tbb::blocked_range<int64_t>(0, n, grain),
                     [&](const tbb::blocked_range<int64_t>& r) { body(r.begin(), r.end()); },
                     tbb::simple_partitioner());
+#endif
 }
 
 // Calls chunk(c, begin, end) for chunks c = 0, 1, ... of [0, n), each `grain` items long (the
@@ -42,6 +71,10 @@ template <typename Chunk>
 int64_t for_each_chunk(int64_t n, int64_t grain, Chunk&& chunk) {
   if (n <= 0) return 0;
   const int64_t num_chunks = (n + grain - 1) / grain;
+#if NEXDYN_PARALLEL_STD_THREADS
+  std_thread_chunks(num_chunks, [&](int64_t c) { chunk(c, c * grain, std::min(n, (c + 1) * grain)); });
+  return num_chunks;
+#endif
   tbb::parallel_for(
       tbb::blocked_range<int64_t>(0, num_chunks, 1),
       [&](const tbb::blocked_range<int64_t>& r) {
@@ -91,7 +124,13 @@ void grouped_sum(int64_t n, int64_t grain, GroupOf&& group_of, Run&& run, double
 // Runs a() and b() at the same time (each may use parallel_for itself).
 template <typename A, typename B>
 void run_both(A&& a, B&& b) {
+#if NEXDYN_PARALLEL_STD_THREADS
+  std::thread other(b);
+  a();
+  other.join();
+#else
   tbb::parallel_invoke(a, b);
+#endif
 }
 
 }  // namespace nexdyn
