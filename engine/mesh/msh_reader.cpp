@@ -80,6 +80,14 @@ std::string quote(std::string_view token) {
   return "'" + out + "'";
 }
 
+// "$Name" of a section for a message: as it is when short and printable, else quoted, since
+// the name of a section the reader skips is whatever follows a '$' in the file.
+std::string section_text(std::string_view name) {
+  bool plain = name.size() <= 40;
+  for (char c : name) plain = plain && c > 32 && c < 127;
+  return plain ? "$" + std::string(name) : quote("$" + std::string(name));
+}
+
 std::string format_double(double x) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.6g", x);
@@ -287,7 +295,7 @@ class MshParser {
       if (line.size() == name.size() + 4 && line.substr(0, 4) == "$End" && line.substr(4) == name)
         return;
     }
-    fail(line_, "unexpected end of file inside $" + std::string(name) + " (opened at line " +
+    fail(line_, "unexpected end of file inside " + section_text(name) + " (opened at line " +
                     std::to_string(header_line) + "); the file is truncated");
   }
 
