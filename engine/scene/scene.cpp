@@ -11,6 +11,7 @@
 #include "engine/contact/start_check.hpp"
 #include "engine/mesh/box_mesher.hpp"
 #include "engine/mesh/msh_reader.hpp"
+#include "engine/mesh/obj_reader.hpp"
 #include "engine/mesh/surface.hpp"
 #include "engine/mesh/tet_mesh.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
@@ -20,7 +21,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -37,21 +37,77 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
+// ---- messages ----------------------------------------------------------------------------------
+// Every message is one line a user can read, whatever the file holds: values are shown cut to
+// about kShownChars characters (a megabyte string or a 100,000-deep array would otherwise be
+// dumped whole, recursively), and control characters from keys, names or paths become '?'.
+
+constexpr size_t kShownChars = 60;
+constexpr size_t kMaxMessageChars = 1000;
+
+void show_into(const json& value, std::string& out) {
+  if (out.size() > kShownChars) return;
+  if (value.is_array()) {
+    out += '[';
+    for (size_t i = 0; i < value.size() && out.size() <= kShownChars; ++i) {
+      if (i > 0) out += ',';
+      show_into(value[i], out);  // each level adds a '[': the budget bounds the depth
+    }
+    out += ']';
+  } else if (value.is_object()) {
+    out += '{';
+    bool first = true;
+    for (const auto& item : value.items()) {
+      if (out.size() > kShownChars) break;
+      if (!first) out += ',';
+      first = false;
+      out += json(item.key()).dump() + ':';
+      show_into(item.value(), out);
+    }
+    out += '}';
+  } else {
+    out += value.dump();
+  }
+}
+
+// `value` as JSON text, at most about kShownChars characters ("..." marks a cut).
+std::string show(const json& value) {
+  std::string out;
+  show_into(value, out);
+  if (out.size() > kShownChars) out = out.substr(0, kShownChars) + "...";
+  return out;
+}
+
+// The whole message on one line and of a bounded length.
+std::string one_line(std::string message) {
+  for (char& c : message)
+    if (static_cast<unsigned char>(c) < 32 || c == 127) c = '?';
+  if (message.size() > kMaxMessageChars) message = message.substr(0, kMaxMessageChars) + "...";
+  return message;
+}
+
+// A key of the file as it appears in a key path: short keys as they are, others shown as JSON.
+std::string key_text(const std::string& key) {
+  bool plain = key.size() <= 40;
+  for (char c : key) plain = plain && static_cast<unsigned char>(c) >= 32 && c != 127 && c != '"';
+  return plain ? key : show(json(key));
+}
+
 // Where in the file a value sits, for error messages.
 class Where {
  public:
   Where(const fs::path& file, std::string path) : file_(file), path_(std::move(path)) {}
   Where operator[](const std::string& key) const {
-    return Where(file_, path_.empty() ? key : path_ + "." + key);
+    return Where(file_, path_.empty() ? key_text(key) : path_ + "." + key_text(key));
   }
   Where operator[](size_t index) const {
     return Where(file_, path_ + "[" + std::to_string(index) + "]");
   }
   [[noreturn]] void fail(const std::string& what) const {
-    throw SceneError(file_.string() + ": " + (path_.empty() ? "" : path_ + ": ") + what);
+    throw SceneError(one_line(file_.string() + ": " + (path_.empty() ? "" : path_ + ": ") + what));
   }
   [[noreturn]] void fail(const std::string& what, const json& value) const {
-    fail(what + ", got " + value.dump());
+    fail(what + ", got " + show(value));
   }
 
  private:
@@ -87,9 +143,20 @@ double positive(const json& value, const Where& where) {
 
 int64_t integer(const json& value, const Where& where, int64_t min_value) {
   if (!value.is_number_integer()) where.fail("expected an integer", value);
+  // Above INT64_MAX nlohmann keeps an unsigned number, which get<int64_t> would wrap negative.
+  if (value.is_number_unsigned() && value.get<uint64_t>() > uint64_t(std::numeric_limits<int64_t>::max()))
+    where.fail("expected an integer below 2^63", value);
   const int64_t i = value.get<int64_t>();
   if (i < min_value) where.fail("expected an integer >= " + std::to_string(min_value), value);
   return i;
+}
+
+// An integer stored in an int: bounded before the cast, so that 2^32 + 1 cannot become 1.
+int bounded_int(const json& value, const Where& where, int min_value, int max_value) {
+  const int64_t i = integer(value, where, min_value);
+  if (i > max_value)
+    where.fail("expected an integer from " + std::to_string(min_value) + " to " + std::to_string(max_value), value);
+  return static_cast<int>(i);
 }
 
 Eigen::Vector3d vec3(const json& value, const Where& where) {
@@ -111,7 +178,7 @@ double non_negative(const json& value, const Where& where) {
 // Static friction below kinetic friction is not a physical surface.
 void check_static_friction(double mu_s, double mu_k, const Where& where) {
   if (mu_s < mu_k)
-    where.fail("static friction must be at least the kinetic \"friction\" " + json(mu_k).dump(), json(mu_s));
+    where.fail("static friction must be at least the kinetic \"friction\" " + show(json(mu_k)), json(mu_s));
 }
 
 bool boolean(const json& value, const Where& where) {
@@ -131,7 +198,7 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
     if (!preset) {
       std::string list;
       for (const std::string& n : integrator_preset_names()) list += (list.empty() ? "" : ", ") + n;
-      w["integrator"].fail("unknown integrator \"" + name + "\" (known: " + list + ")");
+      w["integrator"].fail("unknown integrator " + show(json(name)) + " (known: " + list + ")");
     }
     time.integrator = *preset;
   }
@@ -157,15 +224,18 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
 
 void read_solver(const json& j, const Where& w, SolverSettings& solver) {
   check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings"});
-  if (j.contains("substep_halvings"))
-    solver.substep_halvings = static_cast<int>(integer(j["substep_halvings"], w["substep_halvings"], 0));
-  if (solver.substep_halvings > kMaxSubstepHalvings)
-    w["substep_halvings"].fail("expected at most " + std::to_string(kMaxSubstepHalvings) + " (dt / 65536)",
-                               j["substep_halvings"]);
+  if (j.contains("substep_halvings")) {
+    // Bounded before the cast to int: 2^32 must not wrap to 0.
+    const int64_t halvings = integer(j["substep_halvings"], w["substep_halvings"], 0);
+    if (halvings > kMaxSubstepHalvings)
+      w["substep_halvings"].fail("expected at most " + std::to_string(kMaxSubstepHalvings) + " (dt / 65536)",
+                                 j["substep_halvings"]);
+    solver.substep_halvings = static_cast<int>(halvings);
+  }
   if (j.contains("tolerance")) solver.tolerance = positive(j["tolerance"], w["tolerance"]);
   if (j.contains("joint_tolerance")) solver.joint_tolerance = positive(j["joint_tolerance"], w["joint_tolerance"]);
   if (j.contains("max_iterations"))
-    solver.max_iterations = static_cast<int>(integer(j["max_iterations"], w["max_iterations"], 1));
+    solver.max_iterations = bounded_int(j["max_iterations"], w["max_iterations"], 1, std::numeric_limits<int>::max());
 }
 
 // A "contact" object switches contact on ("contact": {} is enough); "enabled": false keeps the
@@ -184,7 +254,7 @@ void read_contact(const json& j, const Where& w, ContactSettings& contact) {
   if (j.contains("friction_iterations")) {
     const json& value = j["friction_iterations"];
     if (value.is_string() && value.get<std::string>() == "converged") contact.friction_iterations = -1;
-    else if (value.is_number_integer()) contact.friction_iterations = static_cast<int>(integer(value, w["friction_iterations"], 1));
+    else if (value.is_number_integer()) contact.friction_iterations = bounded_int(value, w["friction_iterations"], 1, std::numeric_limits<int>::max());
     else w["friction_iterations"].fail("expected an integer >= 1 or \"converged\"", value);
   }
   // "friction_pairs" names materials: read by read_friction_pairs once they are known.
@@ -194,7 +264,7 @@ void read_contact(const json& j, const Where& w, ContactSettings& contact) {
 int32_t material_id(const json& value, const Where& w, const std::map<std::string, int32_t>& material_ids) {
   const std::string name = string(value, w);
   const auto found = material_ids.find(name);
-  if (found == material_ids.end()) w.fail("no material named \"" + name + "\" in \"materials\"");
+  if (found == material_ids.end()) w.fail("no material named " + show(json(name)) + " in \"materials\"");
   return found->second;
 }
 
@@ -202,6 +272,7 @@ int32_t material_id(const json& value, const Where& w, const std::map<std::strin
 void read_friction_pairs(const json& j, const Where& w, const std::map<std::string, int32_t>& material_ids,
                          ContactSettings& contact) {
   if (!j.is_array()) w.fail("expected an array", j);
+  std::set<std::pair<int32_t, int32_t>> given;  // a set: a long list must not take quadratic time
   for (size_t i = 0; i < j.size(); ++i) {
     const json& entry = j[i];
     const Where we = w[i];
@@ -220,8 +291,7 @@ void read_friction_pairs(const json& j, const Where& w, const std::map<std::stri
       pair.static_friction = non_negative(entry["static_friction"], we["static_friction"]);
       check_static_friction(pair.static_friction, pair.friction, we["static_friction"]);
     }
-    for (const ContactSettings::FrictionPair& other : contact.friction_pairs)
-      if (other.a == pair.a && other.b == pair.b) we["materials"].fail("this pair of materials is already given", names);
+    if (!given.insert({pair.a, pair.b}).second) we["materials"].fail("this pair of materials is already given", names);
     contact.friction_pairs.push_back(pair);
   }
 }
@@ -252,8 +322,8 @@ Material read_material(const std::string& name, const json& j, const Where& w) {
   m.name = name;
   const std::string model = string(j["model"], w["model"]);
   const auto parsed = material_model_from_name(model);
-  if (!parsed) w["model"].fail("unknown material model \"" + model +
-                               "\" (known: linear, stvk, corotated, neohookean)");
+  if (!parsed) w["model"].fail("unknown material model " + show(json(model)) +
+                               " (known: linear, stvk, corotated, neohookean)");
   m.model = *parsed;
   m.youngs = positive(j["youngs"], w["youngs"]);
   m.poisson = number(j["poisson"], w["poisson"]);
@@ -316,8 +386,25 @@ Transform read_transform(const json& j, const Where& w) {
   return t;
 }
 
+// Fails at `w` when adding `vertices` and `tets` to the model would pass the scene's limits;
+// `what` says what is being added ("1000000 copies of a 4-vertex, 1-tet body").
+void check_size(const Model& model, int64_t vertices, int64_t tets, const SceneLimits& limits,
+                const std::string& what, const Where& w) {
+  const int64_t total_vertices = model.num_vertices + vertices;
+  const int64_t total_tets = model.num_tets + tets;
+  if (total_vertices > limits.max_vertices)
+    w.fail(what + " would give the scene " + std::to_string(total_vertices) +
+           " vertices, more than the limit of " + std::to_string(limits.max_vertices));
+  if (total_tets > limits.max_tets)
+    w.fail(what + " would give the scene " + std::to_string(total_tets) + " tets, more than the limit of " +
+           std::to_string(limits.max_tets));
+}
+
+// Reads one "bodies" entry; its mesh is read or built (once per file or box), after checking
+// that the body and all its copies fit in the scene's limits next to what `model` already holds.
 BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
-                   const std::map<std::string, int32_t>& material_ids, MeshCache& cache) {
+                   const std::map<std::string, int32_t>& material_ids, MeshCache& cache,
+                   const Model& model, const SceneLimits& limits) {
   check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array"});
   BodySpec body;
   if (j.contains("mesh") == j.contains("box")) w.fail("give exactly one of \"mesh\" and \"box\"");
@@ -327,7 +414,8 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
     const fs::path path = scene_dir / rel;
     key = "mesh:" + path.lexically_normal().string();
     if (!cache.entries.count(key)) {
-      if (!fs::exists(path)) w["mesh"].fail("mesh file not found: " + path.string());
+      std::error_code error;  // the throwing fs::exists would escape with its own message
+      if (!fs::exists(path, error)) w["mesh"].fail("mesh file not found: " + path.string());
       TetMesh mesh;
       try {
         mesh = read_msh(path);
@@ -354,6 +442,12 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
     }
     key = "box:" + box.dump();
     if (!cache.entries.count(key)) {
+      const int64_t vertices = int64_t{n[0] + 1} * (n[1] + 1) * (n[2] + 1);
+      const int64_t tets = kTetsPerBoxCell * int64_t{n[0]} * n[1] * n[2];
+      check_size(model, vertices, tets, limits,
+                 "a box of " + show(cells) + " cells (" + std::to_string(vertices) + " vertices, " +
+                     std::to_string(tets) + " tets)",
+                 wb["cells"]);
       TetMesh mesh = make_box_mesh(size, n);
       SurfaceMesh surface = extract_surface(mesh);
       cache.entries.emplace(key, std::make_pair(std::move(mesh), std::move(surface)));
@@ -376,17 +470,30 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir,
     if (!a.contains("count")) wa.fail("missing key \"count\"");
     const json& count = a["count"];
     if (!count.is_array() || count.size() != 3) wa["count"].fail("expected 3 positive integers", count);
-    for (int d = 0; d < 3; ++d) body.count[d] = integer(count[d], wa["count"][d], 1);
+    for (int d = 0; d < 3; ++d) {
+      body.count[d] = integer(count[d], wa["count"][d], 1);
+      if (body.count[d] > 1000000) wa["count"].fail("more than 1,000,000 copies", count);
+    }
+    // Each factor is at most 10^6 now, so the product cannot overflow.
     if (body.count[0] * body.count[1] * body.count[2] > 1000000)
       wa["count"].fail("more than 1,000,000 copies", count);
     if (a.contains("spacing")) body.spacing = vec3(a["spacing"], wa["spacing"]);
   }
+  const int64_t copies = body.count[0] * body.count[1] * body.count[2];
+  check_size(model, copies * body.mesh->num_vertices(), copies * body.mesh->num_tets(), limits,
+             std::to_string(copies) + (copies == 1 ? " copy" : " copies") + " of a " +
+                 std::to_string(body.mesh->num_vertices()) + "-vertex, " + std::to_string(body.mesh->num_tets()) +
+                 "-tet body",
+             j.contains("array") ? w["array"]["count"] : w);
   return body;
 }
 
-// Appends one transformed copy of a body to the model and the initial state.
-void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t scene_entry,
-                 Model& model, State& state) {
+// Appends one transformed copy of a body to the model and the initial state. Returns what is
+// wrong with the copy, empty when nothing is: a transform can overflow a position to infinity
+// (translate 1e308 plus an array spacing) or flatten tets that were fine in the mesh's own frame
+// (scale [1, 1, 1e-300]), and the elastic kernels need finite rest positions and invertible Dm.
+std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t scene_entry,
+                        Model& model, State& state) {
   const TetMesh& mesh = *spec.mesh;
   const SurfaceMesh& surface = *spec.surface;
   BodyRange range;
@@ -406,6 +513,9 @@ void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t sc
   for (int32_t v = 0; v < mesh.num_vertices(); ++v) {
     const Eigen::Vector3d p = spec.linear * Eigen::Vector3d::Map(&mesh.positions[3 * v]) +
                               spec.translate + offset;
+    if (!p.allFinite())
+      return "vertex " + std::to_string(v) + " of the mesh is not finite after the transform (translate, scale "
+             "or array spacing too large)";
     for (int d = 0; d < 3; ++d) {
       model.rest_positions.push_back(p[d]);
       state.v.push_back(spec.velocity[d]);
@@ -424,6 +534,12 @@ void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t sc
       Dm.col(c) = Eigen::Vector3d::Map(&model.rest_positions[3 * ids[c + 1]]) - x0;
     const double volume = Dm.determinant() / 6.0;
     const Eigen::Matrix3d inv = Dm.inverse();
+    const double longest = std::max({Dm.col(0).norm(), Dm.col(1).norm(), Dm.col(2).norm(),
+                                     (Dm.col(1) - Dm.col(0)).norm(), (Dm.col(2) - Dm.col(0)).norm(),
+                                     (Dm.col(2) - Dm.col(1)).norm()});
+    if (!(volume > kDegenerateTetRelativeVolume * longest * longest * longest) || !inv.allFinite())
+      return "tet " + std::to_string(t) + " of the mesh is degenerate after the transform (volume " +
+             show(json(volume)) + "; scale too small or too uneven)";
     for (int c = 0; c < 4; ++c) {
       model.tets.push_back(ids[c]);
       model.mass[ids[c]] += density * volume / 4.0;
@@ -443,6 +559,7 @@ void append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t sc
   model.num_vertices += range.vertex_count;
   model.num_tets += range.tet_count;
   model.bodies.push_back(range);
+  return "";
 }
 
 // The rigid motion keys of a "boundary" or moving obstacle entry: "velocity", "angular_velocity"
@@ -611,105 +728,10 @@ struct ObstacleMesh {
   std::vector<int32_t> edges;      // (num_edges x 2) unique edges of the triangles, a < b, sorted
 };
 
-// A triangle is degenerate when its area <= kDegenerateTriangleRelativeArea * (longest edge)^2:
-// zero area up to round-off, for which no normal and no point-triangle distance is defined.
-// Scale-free for the same reason as kDegenerateTetRelativeVolume in tet_mesh.hpp.
-constexpr double kDegenerateTriangleRelativeArea = 1e-12;
-
-bool is_degenerate_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const double area = 0.5 * (b - a).cross(c - a).norm();
-  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-  return area <= kDegenerateTriangleRelativeArea * longest * longest;
-}
-
-// Parses one OBJ face corner, "i", "i/t", "i//n" or "i/t/n", into a 0-based vertex id.
-// Negative indices count back from the last vertex defined so far (-1 = the latest); positive
-// ones must refer to a vertex already defined, as the OBJ format says. nullopt when malformed
-// or out of range; the caller names the line.
-std::optional<int32_t> obj_vertex_index(std::string_view corner, int64_t vertices_so_far) {
-  auto parse = [](std::string_view text, int64_t& value) {
-    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-    return error == std::errc() && end == text.data() + text.size();
-  };
-  // Split at '/': at most three parts; the texture and normal parts are checked, then ignored.
-  std::string_view parts[3];
-  int num_parts = 0;
-  for (size_t start = 0;;) {
-    if (num_parts == 3) return std::nullopt;
-    const size_t slash = corner.find('/', start);
-    parts[num_parts++] = corner.substr(start, slash == std::string_view::npos ? slash : slash - start);
-    if (slash == std::string_view::npos) break;
-    start = slash + 1;
-  }
-  int64_t ignored = 0;
-  for (int p = 1; p < num_parts; ++p)
-    if (!parts[p].empty() && !parse(parts[p], ignored)) return std::nullopt;
-  int64_t index = 0;
-  if (!parse(parts[0], index) || index == 0) return std::nullopt;
-  const int64_t id = index > 0 ? index - 1 : vertices_so_far + index;
-  if (id < 0 || id >= vertices_so_far) return std::nullopt;
-  return static_cast<int32_t>(id);
-}
-
-// A deliberately small OBJ reader: "v x y z" and "f a b c ..." lines; polygons are triangulated
-// as a fan around their first corner. Every other statement (vt, vn, o, g, s, usemtl, mtllib,
-// l, comments) is ignored, since a static collision surface needs nothing else. What it does
-// read it reads strictly: malformed numbers, faces of fewer than 3 corners, bad or out-of-range
-// indices and zero-area triangles throw SceneError naming the file and the line.
-ObstacleMesh read_obj(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path.string() + ": cannot open the file");
+ObstacleMesh obstacle_from_obj(ObjMesh&& obj) {
   ObstacleMesh mesh;
-  int64_t line_number = 0;
-  auto fail = [&](const std::string& what) {
-    throw SceneError(path.string() + ": line " + std::to_string(line_number) + ": " + what);
-  };
-  std::string line;
-  std::vector<std::string_view> tokens;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();  // files written on Windows
-    tokens.clear();
-    for (size_t i = 0; i < line.size();) {
-      while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-      const size_t start = i;
-      while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-      if (i > start) tokens.emplace_back(line.data() + start, i - start);
-    }
-    if (tokens.empty()) continue;
-    if (tokens[0] == "v") {
-      // x y z, optionally followed by w or by r g b vertex colours, which are ignored.
-      if (tokens.size() < 4) fail("expected \"v x y z\", got \"" + line + "\"");
-      for (size_t t = 1; t < tokens.size(); ++t) {
-        double value = 0.0;
-        const auto [end, error] = std::from_chars(tokens[t].data(), tokens[t].data() + tokens[t].size(), value);
-        if (error != std::errc() || end != tokens[t].data() + tokens[t].size() || !std::isfinite(value))
-          fail("expected a finite number, got \"" + std::string(tokens[t]) + "\"");
-        if (t <= 3) mesh.positions.push_back(value);
-      }
-      if (mesh.positions.size() / 3 > (size_t{1} << 30)) fail("more than 2^30 vertices");
-    } else if (tokens[0] == "f") {
-      if (tokens.size() < 4) fail("a face needs at least 3 vertices, got \"" + line + "\"");
-      const int64_t defined = static_cast<int64_t>(mesh.positions.size() / 3);
-      std::vector<int32_t> corners;
-      for (size_t t = 1; t < tokens.size(); ++t) {
-        const auto id = obj_vertex_index(tokens[t], defined);
-        if (!id) fail("bad vertex reference \"" + std::string(tokens[t]) + "\" (" +
-                      std::to_string(defined) + " vertices defined so far)");
-        corners.push_back(*id);
-      }
-      for (size_t k = 1; k + 1 < corners.size(); ++k) {
-        const int32_t tri[3] = {corners[0], corners[k], corners[k + 1]};
-        auto p = [&](int32_t id) { return Eigen::Vector3d::Map(&mesh.positions[3 * size_t(id)]); };
-        if (is_degenerate_triangle(p(tri[0]), p(tri[1]), p(tri[2])))
-          fail("degenerate (zero-area) triangle " + std::to_string(tri[0] + 1) + " " +
-               std::to_string(tri[1] + 1) + " " + std::to_string(tri[2] + 1));
-        mesh.triangles.insert(mesh.triangles.end(), tri, tri + 3);
-      }
-    }
-  }
-  if (in.bad()) throw SceneError(path.string() + ": read error");
-  if (mesh.triangles.empty()) throw SceneError(path.string() + ": no faces (\"f\" lines)");
+  mesh.positions = std::move(obj.positions);
+  mesh.triangles = std::move(obj.triangles);
   return mesh;
 }
 
@@ -770,11 +792,12 @@ const ObstacleMesh& read_obstacle_mesh(const json& j, const Where& w, const fs::
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (extension != ".obj" && extension != ".msh")
     w["mesh"].fail("expected an .obj or .msh file", j["mesh"]);
-  if (!fs::exists(path)) w["mesh"].fail("mesh file not found: " + path.string());
+  std::error_code error;  // the throwing fs::exists would escape with its own message
+  if (!fs::exists(path, error)) w["mesh"].fail("mesh file not found: " + path.string());
   ObstacleMesh mesh;
   try {
-    mesh = extension == ".obj" ? read_obj(path) : read_msh_surface(path);
-  } catch (const std::exception& e) {  // SceneError from read_obj, MeshError from read_msh
+    mesh = extension == ".obj" ? obstacle_from_obj(read_obj(path)) : read_msh_surface(path);
+  } catch (const std::exception& e) {  // MeshError from the readers, SceneError from the surface
     w["mesh"].fail(e.what());
   }
   compact_and_find_edges(mesh);
@@ -784,8 +807,9 @@ const ObstacleMesh& read_obstacle_mesh(const json& j, const Where& w, const fs::
 // Appends an obstacle mesh as a body: no tets, mass 0, every vertex on the Dirichlet motion
 // `motion` (the shared fixed one, or the obstacle's own), zero initial velocity (the simulation
 // prescribes it). Its triangles join the collision surface.
-void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32_t scene_entry,
-                     int32_t material, int32_t motion, Model& model, State& state) {
+// Returns what is wrong with the placed mesh (as append_body), empty when nothing is.
+std::string append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32_t scene_entry,
+                            int32_t material, int32_t motion, Model& model, State& state) {
   BodyRange range;
   range.vertex_begin = model.num_vertices;
   range.vertex_count = static_cast<int32_t>(mesh.positions.size() / 3);
@@ -804,6 +828,9 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
   for (int32_t v = 0; v < range.vertex_count; ++v) {
     const Eigen::Vector3d p = transform.linear * Eigen::Vector3d::Map(&mesh.positions[3 * size_t(v)]) +
                               transform.translate;
+    if (!p.allFinite())
+      return "vertex " + std::to_string(v) + " of the mesh is not finite after the transform (translate or scale "
+             "too large)";
     for (int d = 0; d < 3; ++d) {
       model.rest_positions.push_back(p[d]);
       state.v.push_back(0.0);
@@ -812,6 +839,11 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
     model.vertex_body.push_back(body_id);
     model.dirichlet.push_back(motion);
   }
+  auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * size_t(base + v)]); };
+  for (size_t t = 0; t < mesh.triangles.size(); t += 3)
+    if (is_degenerate_triangle(X(mesh.triangles[t]), X(mesh.triangles[t + 1]), X(mesh.triangles[t + 2])))
+      return "triangle " + std::to_string(t / 3) + " of the mesh is degenerate after the transform (scale too "
+             "small or too uneven)";
   for (int32_t i : mesh.triangles) model.surface_triangles.push_back(base + i);
   for (int32_t i : mesh.edges) model.surface_edges.push_back(base + i);
   // Every vertex is used by a triangle (compact_and_find_edges), and base exceeds every earlier
@@ -819,13 +851,14 @@ void append_obstacle(const ObstacleMesh& mesh, const Transform& transform, int32
   for (int32_t v = 0; v < range.vertex_count; ++v) model.surface_vertices.push_back(base + v);
   model.num_vertices += range.vertex_count;
   model.bodies.push_back(range);
+  return "";
 }
 
 // One entry of "obstacles": a plane or a mesh, static or moving. `fixed_motion` is the id of the
 // shared fixed Dirichlet motion of static meshes, created on the first one (-1 until then).
 void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs::path& scene_dir,
                    const std::map<std::string, int32_t>& material_ids, ObstacleCache& cache,
-                   int32_t& fixed_motion, Model& model, State& state) {
+                   int32_t& fixed_motion, const SceneLimits& limits, Model& model, State& state) {
   if (!j.is_object()) w.fail("expected an object", j);
   if (j.contains("plane") == j.contains("mesh")) w.fail("give exactly one of \"plane\" and \"mesh\"");
   // Only friction reads an obstacle's material (contact.friction_pairs).
@@ -851,8 +884,8 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
                     "axis", "center"});
   const ObstacleMesh& mesh = read_obstacle_mesh(j, w, scene_dir, cache);
   const Transform transform = read_transform(j, w);
-  if (int64_t{model.num_vertices} + static_cast<int64_t>(mesh.positions.size() / 3) > (int64_t{1} << 30))
-    w.fail("the scene exceeds 2^30 vertices");
+  const int64_t vertices = static_cast<int64_t>(mesh.positions.size() / 3);
+  check_size(model, vertices, 0, limits, "an obstacle mesh of " + std::to_string(vertices) + " vertices", w["mesh"]);
   int32_t motion_id = fixed_motion;
   if (j.contains("velocity") || j.contains("angular_velocity")) {
     // A moving obstacle: its own motion, about the centre of its bounding box by default.
@@ -865,19 +898,20 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
     fixed_motion = motion_id = static_cast<int32_t>(model.dirichlet_motions.size());
     model.dirichlet_motions.push_back(DirichletMotion{});  // velocity 0, angular velocity 0
   }
-  append_obstacle(mesh, transform, scene_entry, material, motion_id, model, state);
+  const std::string problem = append_obstacle(mesh, transform, scene_entry, material, motion_id, model, state);
+  if (!problem.empty()) w.fail(problem);
 }
 
 }  // namespace
 
-Scene load_scene(const fs::path& file) {
+Scene load_scene(const fs::path& file, const SceneLimits& limits) {
   std::ifstream in(file);
-  if (!in) throw SceneError(file.string() + ": cannot open the scene file");
+  if (!in) throw SceneError(one_line(file.string() + ": cannot open the scene file"));
   json root;
   try {
     root = json::parse(in);
-  } catch (const json::parse_error& e) {
-    throw SceneError(file.string() + ": not valid JSON: " + e.what());
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999
+    throw SceneError(one_line(file.string() + ": not valid JSON: " + e.what()));
   }
   const Where w(file, "");
   check_keys(root, w, {"name", "gravity", "time", "solver", "contact", "materials", "bodies",
@@ -885,8 +919,13 @@ Scene load_scene(const fs::path& file) {
   Scene scene;
   scene.file = file;
   scene.name = root.contains("name") ? string(root["name"], w["name"]) : file.stem().string();
-  if (scene.name.empty() || scene.name.find('/') != std::string::npos)
-    w["name"].fail("expected a non-empty name without '/'", root["name"]);
+  // The name is the default output folder (out/<name>): "." or ".." would write outside it.
+  bool bad_name = scene.name.empty() || scene.name == "." || scene.name == ".." ||
+                  scene.name.find('/') != std::string::npos;
+  for (char c : scene.name) bad_name = bad_name || static_cast<unsigned char>(c) < 32 || c == 127;
+  if (bad_name)
+    w["name"].fail("expected a non-empty name without '/' or control characters, not \".\" or \"..\"",
+                   root.contains("name") ? root["name"] : json(scene.name));
   if (root.contains("gravity")) scene.model.gravity = vec3(root["gravity"], w["gravity"]);
   if (root.contains("time")) read_time(root["time"], w["time"], scene.time);
   if (root.contains("solver")) read_solver(root["solver"], w["solver"], scene.solver);
@@ -906,6 +945,9 @@ Scene load_scene(const fs::path& file) {
   if (!root.contains("materials")) w.fail("missing key \"materials\"");
   const json& materials = root["materials"];
   if (!materials.is_object() || materials.empty()) w["materials"].fail("expected a non-empty object of named materials");
+  if (static_cast<int64_t>(materials.size()) > limits.max_materials)
+    w["materials"].fail(std::to_string(materials.size()) + " materials, more than the limit of " +
+                        std::to_string(limits.max_materials));
   std::map<std::string, int32_t> material_ids;
   for (const auto& item : materials.items()) {
     material_ids[item.key()] = static_cast<int32_t>(scene.model.materials.size());
@@ -921,14 +963,19 @@ Scene load_scene(const fs::path& file) {
   MeshCache cache;
   const fs::path scene_dir = file.parent_path();
   for (size_t b = 0; b < bodies.size(); ++b) {
-    const BodySpec spec = read_body(bodies[b], w["bodies"][b], scene_dir, material_ids, cache);
+    const BodySpec spec =
+        read_body(bodies[b], w["bodies"][b], scene_dir, material_ids, cache, scene.model, limits);
     for (int64_t i = 0; i < spec.count[0]; ++i)
       for (int64_t k = 0; k < spec.count[1]; ++k)
         for (int64_t l = 0; l < spec.count[2]; ++l) {
           const Eigen::Vector3d offset(i * spec.spacing.x(), k * spec.spacing.y(), l * spec.spacing.z());
-          if (int64_t{scene.model.num_vertices} + spec.mesh->num_vertices() > (int64_t{1} << 30))
-            w["bodies"][b].fail("the scene exceeds 2^30 vertices");
-          append_body(spec, offset, static_cast<int32_t>(b), scene.model, scene.initial);
+          const std::string problem = append_body(spec, offset, static_cast<int32_t>(b), scene.model, scene.initial);
+          if (!problem.empty())
+            w["bodies"][b].fail((spec.count == std::array<int64_t, 3>{1, 1, 1}
+                                     ? std::string()
+                                     : "copy (" + std::to_string(i) + ", " + std::to_string(k) + ", " +
+                                           std::to_string(l) + ") of the array: ") +
+                                problem);
         }
   }
 
@@ -958,7 +1005,7 @@ Scene load_scene(const fs::path& file) {
     int32_t fixed_motion = -1;
     for (size_t i = 0; i < obstacles.size(); ++i)
       read_obstacle(obstacles[i], w["obstacles"][i], static_cast<int32_t>(i), scene_dir, material_ids,
-                    obstacle_cache, fixed_motion, scene.model, scene.initial);
+                    obstacle_cache, fixed_motion, limits, scene.model, scene.initial);
   }
 
   // With contact, moving boundaries and obstacles push bodies: their vertices become unknowns
@@ -970,7 +1017,7 @@ Scene load_scene(const fs::path& file) {
   scene.initial.x_tilde = scene.initial.x;
   if (scene.contact.enabled) {
     const std::string problem = initial_contact_problem(scene.model);
-    if (!problem.empty()) throw SceneError(file.string() + ": " + problem);
+    if (!problem.empty()) throw SceneError(one_line(file.string() + ": " + problem));
   }
   return scene;
 }

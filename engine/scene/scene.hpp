@@ -2,7 +2,8 @@
 //
 // Every key of the file is documented in docs/scenes.md. Loading is strict: unknown keys, wrong
 // types, out-of-range values and missing files throw SceneError naming the file, the key path
-// (e.g. "bodies[2].material") and the offending value. Nothing is written while loading.
+// (e.g. "bodies[2].material") and the offending value, on one line. Nothing is written while
+// loading.
 #pragma once
 
 #include "engine/integrator.hpp"
@@ -81,6 +82,17 @@ struct Scene {
                   // a = 0 (set by the simulation)
 };
 
-Scene load_scene(const std::filesystem::path& file);
+// How large a scene may be. A few bytes of JSON can ask for a box of 10^9 cells or a million
+// copies of a mesh: the loader checks what a body would add before building it and refuses a
+// scene past these limits with a SceneError naming the key. The defaults are far above any
+// scene the engine can step in reasonable time (scripts/make_mat.py 1000 is 2M vertices and
+// 6M tets); tests and fuzzers pass smaller ones.
+struct SceneLimits {
+  int64_t max_vertices = 20'000'000;   // bodies and obstacle meshes together
+  int64_t max_tets = 100'000'000;
+  int64_t max_materials = 1'000;       // friction keeps a table of every pair
+};
+
+Scene load_scene(const std::filesystem::path& file, const SceneLimits& limits = {});
 
 }  // namespace nexdyn

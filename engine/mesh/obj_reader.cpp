@@ -1,0 +1,149 @@
+// Wavefront .obj reader (what it accepts and rejects: obj_reader.hpp).
+//
+// The file is read into memory in one go and walked line by line as string_views; numbers are
+// parsed with std::from_chars (locale-free, no allocation). Text quoted in a message is cut to 40
+// characters with control bytes shown as '?', so that every message stays one short line
+// whatever the file holds.
+#include "engine/mesh/obj_reader.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <system_error>
+
+namespace nexdyn {
+namespace {
+
+bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+}
+
+// `text` in double quotes for a message: at most 40 characters, control bytes as '?'.
+std::string quoted(std::string_view text) {
+  std::string out = "\"";
+  for (char c : text.substr(0, 40)) out += (static_cast<unsigned char>(c) >= 32 && c != 127) ? c : '?';
+  if (text.size() > 40) out += "...";
+  return out + "\"";
+}
+
+// Parses one OBJ face corner, "i", "i/t", "i//n" or "i/t/n", into a 0-based vertex id.
+// Negative indices count back from the last vertex defined so far (-1 = the latest); positive
+// ones must refer to a vertex already defined, as the OBJ format says. nullopt when malformed
+// or out of range; the caller names the line.
+std::optional<int32_t> obj_vertex_index(std::string_view corner, int64_t vertices_so_far) {
+  auto parse = [](std::string_view text, int64_t& value) {
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+    return error == std::errc() && end == text.data() + text.size();
+  };
+  // Split at '/': at most three parts; the texture and normal parts are checked, then ignored.
+  std::string_view parts[3];
+  int num_parts = 0;
+  for (size_t start = 0;;) {
+    if (num_parts == 3) return std::nullopt;
+    const size_t slash = corner.find('/', start);
+    parts[num_parts++] = corner.substr(start, slash == std::string_view::npos ? slash : slash - start);
+    if (slash == std::string_view::npos) break;
+    start = slash + 1;
+  }
+  int64_t ignored = 0;
+  for (int p = 1; p < num_parts; ++p)
+    if (!parts[p].empty() && !parse(parts[p], ignored)) return std::nullopt;
+  int64_t index = 0;
+  if (!parse(parts[0], index) || index == 0) return std::nullopt;
+  // index > 0 here cannot overflow; index < 0 is at least INT64_MIN + 1, and vertices_so_far
+  // is below 2^30, so the sum stays in range too.
+  const int64_t id = index > 0 ? index - 1 : vertices_so_far + index;
+  if (id < 0 || id >= vertices_so_far) return std::nullopt;
+  return static_cast<int32_t>(id);
+}
+
+}  // namespace
+
+bool is_degenerate_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const double area = 0.5 * (b - a).cross(c - a).norm();
+  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  return area <= kDegenerateTriangleRelativeArea * longest * longest;
+}
+
+ObjMesh parse_obj(std::string_view text, std::string_view source_name) {
+  ObjMesh mesh;
+  int64_t line_number = 0;
+  auto fail = [&](const std::string& what) {
+    throw MeshError(std::string(source_name) + ": line " + std::to_string(line_number) + ": " + what);
+  };
+  std::vector<std::string_view> tokens;
+  std::vector<int32_t> corners;
+  for (size_t begin = 0; begin < text.size();) {
+    size_t end = text.find('\n', begin);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view line = text.substr(begin, end - begin);
+    begin = end + 1;
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);  // files written on Windows
+    tokens.clear();
+    for (size_t i = 0; i < line.size();) {
+      while (i < line.size() && is_space(line[i])) ++i;
+      const size_t start = i;
+      while (i < line.size() && !is_space(line[i])) ++i;
+      if (i > start) tokens.push_back(line.substr(start, i - start));
+    }
+    if (tokens.empty()) continue;
+    if (tokens[0] == "v") {
+      // x y z, optionally followed by w or by r g b vertex colours, which are ignored.
+      if (tokens.size() < 4) fail("expected \"v x y z\", got " + quoted(line));
+      for (size_t t = 1; t < tokens.size(); ++t) {
+        double value = 0.0;
+        const auto [last, error] = std::from_chars(tokens[t].data(), tokens[t].data() + tokens[t].size(), value);
+        if (error != std::errc() || last != tokens[t].data() + tokens[t].size() || !std::isfinite(value))
+          fail("expected a finite number, got " + quoted(tokens[t]));
+        if (t <= 3) mesh.positions.push_back(value);
+      }
+      if (mesh.positions.size() / 3 > (size_t{1} << 30)) fail("more than 2^30 vertices");
+    } else if (tokens[0] == "f") {
+      if (tokens.size() < 4) fail("a face needs at least 3 vertices, got " + quoted(line));
+      const int64_t defined = static_cast<int64_t>(mesh.positions.size() / 3);
+      corners.clear();
+      for (size_t t = 1; t < tokens.size(); ++t) {
+        const auto id = obj_vertex_index(tokens[t], defined);
+        if (!id) fail("bad vertex reference " + quoted(tokens[t]) + " (" + std::to_string(defined) +
+                      " vertices defined so far)");
+        corners.push_back(*id);
+      }
+      for (size_t k = 1; k + 1 < corners.size(); ++k) {
+        const int32_t tri[3] = {corners[0], corners[k], corners[k + 1]};
+        auto p = [&](int32_t id) { return Eigen::Vector3d::Map(&mesh.positions[3 * size_t(id)]); };
+        if (is_degenerate_triangle(p(tri[0]), p(tri[1]), p(tri[2])))
+          fail("degenerate (zero-area) triangle " + std::to_string(tri[0] + 1) + " " +
+               std::to_string(tri[1] + 1) + " " + std::to_string(tri[2] + 1));
+        mesh.triangles.insert(mesh.triangles.end(), tri, tri + 3);
+      }
+    }
+  }
+  if (mesh.triangles.empty()) throw MeshError(std::string(source_name) + ": no faces (\"f\" lines)");
+  return mesh;
+}
+
+ObjMesh read_obj(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error))
+    throw MeshError(name + ": cannot open the file (" +
+                    (std::filesystem::exists(path, error) ? "not a regular file" : "no such file") + ")");
+  std::FILE* file = std::fopen(name.c_str(), "rb");
+  if (file == nullptr) throw MeshError(name + ": cannot open the file");
+  std::string text;
+  char buffer[1 << 16];
+  std::size_t got = 0;
+  while ((got = std::fread(buffer, 1, sizeof buffer, file)) > 0) text.append(buffer, got);
+  const bool read_failed = std::ferror(file) != 0;
+  std::fclose(file);
+  if (read_failed) throw MeshError(name + ": read error");
+  return parse_obj(text, name);
+}
+
+}  // namespace nexdyn
