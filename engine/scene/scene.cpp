@@ -514,7 +514,7 @@ std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int
     const Eigen::Vector3d p = spec.linear * Eigen::Vector3d::Map(&mesh.positions[3 * v]) +
                               spec.translate + offset;
     if (!p.allFinite())
-      return "vertex " + std::to_string(v) + " of the mesh is not finite after the transform (translate, scale "
+      return "vertex " + std::to_string(v) + " of the mesh is not finite once placed (translate, scale "
              "or array spacing too large)";
     for (int d = 0; d < 3; ++d) {
       model.rest_positions.push_back(p[d]);
@@ -538,8 +538,8 @@ std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int
                                      (Dm.col(1) - Dm.col(0)).norm(), (Dm.col(2) - Dm.col(0)).norm(),
                                      (Dm.col(2) - Dm.col(1)).norm()});
     if (!(volume > kDegenerateTetRelativeVolume * longest * longest * longest) || !inv.allFinite())
-      return "tet " + std::to_string(t) + " of the mesh is degenerate after the transform (volume " +
-             show(json(volume)) + "; scale too small or too uneven)";
+      return "tet " + std::to_string(t) + " of the mesh is degenerate once placed (volume " + show(json(volume)) +
+             "): size or scale too small or too uneven, or translate too large for its size";
     for (int c = 0; c < 4; ++c) {
       model.tets.push_back(ids[c]);
       model.mass[ids[c]] += density * volume / 4.0;
@@ -829,7 +829,7 @@ std::string append_obstacle(const ObstacleMesh& mesh, const Transform& transform
     const Eigen::Vector3d p = transform.linear * Eigen::Vector3d::Map(&mesh.positions[3 * size_t(v)]) +
                               transform.translate;
     if (!p.allFinite())
-      return "vertex " + std::to_string(v) + " of the mesh is not finite after the transform (translate or scale "
+      return "vertex " + std::to_string(v) + " of the mesh is not finite once placed (translate or scale "
              "too large)";
     for (int d = 0; d < 3; ++d) {
       model.rest_positions.push_back(p[d]);
@@ -842,8 +842,8 @@ std::string append_obstacle(const ObstacleMesh& mesh, const Transform& transform
   auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * size_t(base + v)]); };
   for (size_t t = 0; t < mesh.triangles.size(); t += 3)
     if (is_degenerate_triangle(X(mesh.triangles[t]), X(mesh.triangles[t + 1]), X(mesh.triangles[t + 2])))
-      return "triangle " + std::to_string(t / 3) + " of the mesh is degenerate after the transform (scale too "
-             "small or too uneven)";
+      return "triangle " + std::to_string(t / 3) + " of the mesh is degenerate once placed: scale too small or "
+             "too uneven, or translate too large for its size";
   for (int32_t i : mesh.triangles) model.surface_triangles.push_back(base + i);
   for (int32_t i : mesh.edges) model.surface_edges.push_back(base + i);
   // Every vertex is used by a triangle (compact_and_find_edges), and base exceeds every earlier
@@ -871,7 +871,10 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
     if (!plane.contains("point") || !plane.contains("normal")) wp.fail("needs \"point\" and \"normal\"");
     ObstaclePlane p;
     p.point = vec3(plane["point"], wp["point"]);
-    const Eigen::Vector3d normal = vec3(plane["normal"], wp["normal"]);
+    // Divided by its largest component first, so that [1e308, 1e308, 0] does not overflow.
+    const Eigen::Vector3d given = vec3(plane["normal"], wp["normal"]);
+    const double largest = given.cwiseAbs().maxCoeff();
+    const Eigen::Vector3d normal = largest > 0.0 ? Eigen::Vector3d(given / largest) : given;
     const double length = normal.norm();
     if (!(length > 0.0) || !std::isfinite(length)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
     p.normal = normal / length;

@@ -77,12 +77,12 @@ const std::vector<Nasty> kCorpus = {
     {"int_overflow_iterations.json", {"solver.max_iterations: ", "from 1 to 2147483647", "4294967297"}},
     {"wrapping_substep_halvings.json", {"solver.substep_halvings: ", "at most 16", "4294967296"}},
     {"uint64_steps.json", {"time.steps: ", "below 2^63", "18446744073709551615"}},
-    // Scenes: transforms that overflow positions or flatten tets (a unit box at x = 1e308 is flat
-    // in double: its vertices round to the same x).
-    {"overflowing_scale.json", {"bodies[0]: ", "vertex 0 of the mesh is not finite after the transform"}},
-    {"far_translate.json",
-     {"bodies[0]: ", "copy (0, 0, 0) of the array: tet 0 of the mesh is degenerate after the transform"}},
-    {"flat_scale.json", {"bodies[0]: ", "tet 0 of the mesh is degenerate after the transform"}},
+    // Scenes: placements that overflow positions or flatten tets (a unit box at x = 1e308 is flat
+    // in double: its vertices round to the same x; a box of 1e-300 m has volume 0 in double).
+    {"overflowing_scale.json", {"bodies[0]: ", "vertex 0 of the mesh is not finite once placed"}},
+    {"far_translate.json", {"bodies[0]: ", "copy (0, 0, 0) of the array: tet 0 of the mesh is degenerate once placed"}},
+    {"flat_scale.json", {"bodies[0]: ", "tet 0 of the mesh is degenerate once placed (volume 1.6666666666666667e-301)"}},
+    {"tiny_box.json", {"bodies[0]: ", "tet 0 of the mesh is degenerate once placed (volume 0.0)"}},
     // Scenes: what could make a message long or break it over lines.
     {"deep_nesting.json", {"gravity: ", "expected an array of 3 numbers, got [[[[", "..."}},
     {"control_character_key.json", {"\"gra\\nvity\": ", "unknown key"}},
@@ -140,6 +140,17 @@ TEST_CASE("nasty inputs: the helper meshes are valid on their own, so the scenes
   const std::string json = R"({ "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
     "bodies": [{ "mesh": "self_intersecting.msh", "material": "m" }] })";
   CHECK(load_scene(test::write_text(dir / "scene.json", json)).model.num_tets == 2);
+}
+
+TEST_CASE("nasty inputs: a plane normal of huge components is normalised, not refused as zero") {
+  // |[1e308, 1e308, 0]| overflows to inf; the loader divides by the largest component first.
+  const Scene scene = test::scene_from_json(R"({ "contact": {},
+    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [{ "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" }],
+    "obstacles": [{ "plane": { "point": [0, -10, 0], "normal": [1e308, 1e308, 0] } }] })",
+                                            "huge_normal");
+  REQUIRE(scene.model.obstacle_planes.size() == 1);
+  CHECK(scene.model.obstacle_planes[0].normal.isApprox(Eigen::Vector3d(1, 1, 0).normalized()));
 }
 
 TEST_CASE("scene limits: a body past max_vertices, max_tets or max_materials is refused by key") {
