@@ -6,12 +6,13 @@
 // whatever the file holds.
 #include "engine/mesh/obj_reader.hpp"
 
+#include "engine/mesh/mesh_file.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <optional>
 #include <string>
 #include <system_error>
@@ -128,22 +129,6 @@ ObjMesh parse_obj(std::string_view text, std::string_view source_name) {
   return mesh;
 }
 
-ObjMesh read_obj(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error))
-    throw MeshError(name + ": cannot open the file (" +
-                    (std::filesystem::exists(path, error) ? "not a regular file" : "no such file") + ")");
-  std::FILE* file = std::fopen(name.c_str(), "rb");
-  if (file == nullptr) throw MeshError(name + ": cannot open the file");
-  std::string text;
-  char buffer[1 << 16];
-  std::size_t got = 0;
-  while ((got = std::fread(buffer, 1, sizeof buffer, file)) > 0) text.append(buffer, got);
-  const bool read_failed = std::ferror(file) != 0;
-  std::fclose(file);
-  if (read_failed) throw MeshError(name + ": read error");
-  return parse_obj(text, name);
-}
+ObjMesh read_obj(const std::filesystem::path& path) { return parse_obj(read_mesh_file(path), path.string()); }
 
 }  // namespace nexdyn
