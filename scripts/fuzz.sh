@@ -58,7 +58,7 @@ for target in "${targets[@]}"; do
       -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=2048 -timeout=10 \
       -artifact_prefix="$findings/" -print_final_stats=1 >"$build_dir/$target.log" 2>&1 || status=$?
   if [ "$status" -eq 0 ]; then
-    grep -E "^#[0-9]+ +DONE|^Done|^stat::" "$build_dir/$target.log" || true
+    grep -E "^#[0-9]+[[:space:]]+DONE|^Done|^stat::" "$build_dir/$target.log" || true
   else
     tail -n 40 "$build_dir/$target.log"
     echo "fuzz.sh: $target FOUND A PROBLEM (exit $status); reproducer:" \
