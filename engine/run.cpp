@@ -345,17 +345,17 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
   StopSignals signals;
   ProgressBar progress(show_progress, record.total_steps);
   if (record.steps_done == 0) write_frame(0);
-  // The state before the step under way: what a checkpoint holds if that step fails.
-  CheckpointWriter snapshot;
-  auto checkpoint = [&](const std::string& state) {
+  // A failed step leaves the simulation in the state before it (Simulation::step), so a
+  // checkpoint taken then holds the last good state.
+  auto checkpoint = [&] {
+    CheckpointWriter state;
+    simulation.save(state);
     record.stats_bytes = stats.bytes();
     record.timings_bytes = timings.bytes();
-    summary.checkpoint = write_checkpoint(out, record, state).string();
+    summary.checkpoint = write_checkpoint(out, record, state.bytes()).string();
   };
   StepProfile before = simulation.profile();
   for (int64_t step = record.steps_done + 1; step <= record.total_steps; ++step) {
-    snapshot = CheckpointWriter();
-    simulation.save(snapshot);
     const StepOutcome outcome = simulation.step();
     if (outcome.status != StepStatus::ok) {
       summary.ok = false;
@@ -363,7 +363,7 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
       std::snprintf(buf, sizeof(buf), "step %lld (t = %.6g s) failed [%s]: ", static_cast<long long>(step),
                     simulation.state().time + scene.time.dt, std::string(step_status_name(outcome.status)).c_str());
       summary.message = buf + outcome.message;
-      checkpoint(snapshot.bytes());
+      checkpoint();
       break;
     }
     const double step_seconds = simulation.last_stats().wall_seconds;
@@ -379,11 +379,8 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
     summary.steps_done = record.steps_done = step;
     progress.update(step, simulation.state().time, step == record.total_steps);
     const bool stop = signals.received() != 0 && step < record.total_steps;
-    if (stop || (record.checkpoint_every > 0 && step % record.checkpoint_every == 0 && step < record.total_steps)) {
-      snapshot = CheckpointWriter();
-      simulation.save(snapshot);
-      checkpoint(snapshot.bytes());
-    }
+    if (stop || (record.checkpoint_every > 0 && step % record.checkpoint_every == 0 && step < record.total_steps))
+      checkpoint();
     if (stop) {
       summary.interrupted = true;
       summary.signal = signals.received();

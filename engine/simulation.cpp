@@ -148,7 +148,6 @@ StepOutcome Simulation::step() {
 
 StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, int& iterations, int& retries) {
   const int halvings = scene_.solver.substep_halvings;
-  if (halvings == 0) return advance(dt, t_next, iterations);
   // The state to go back to if this attempt fails.
   CheckpointWriter before;
   save(before);
@@ -160,6 +159,7 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
     restore(in);
   }
   if (level == halvings) {
+    if (halvings == 0) return outcome;
     char where[160];
     std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
                   halvings, halvings == 1 ? "" : "s", dt, t_start);
