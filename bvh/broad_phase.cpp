@@ -61,15 +61,19 @@ constexpr size_t kConvertGrain = 4096;
 
 std::vector<FloatAabb> to_float_boxes(const double* lower, const double* upper, int32_t n) {
   std::vector<FloatAabb> boxes(static_cast<size_t>(n));
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), kConvertGrain),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i < r.end(); ++i) {
-                        for (int d = 0; d < 3; ++d) {
-                          boxes[i].lower[d] = round_down(lower[3 * i + d]);
-                          boxes[i].upper[d] = round_up(upper[3 * i + d]);
-                        }
-                      }
-                    });
+  auto convert = [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      for (int d = 0; d < 3; ++d) {
+        boxes[i].lower[d] = round_down(lower[3 * i + d]);
+        boxes[i].upper[d] = round_up(upper[3 * i + d]);
+      }
+    }
+  };
+#if NEXDYN_PARALLEL_STD_THREADS
+  convert(tbb::blocked_range<size_t>(0, boxes.size()));  // see EmbreeDevice()
+#else
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), kConvertGrain), convert);
+#endif
   return boxes;
 }
 
@@ -155,7 +159,11 @@ std::vector<IndexPair> gather_sorted(tbb::enumerable_thread_specific<std::vector
   std::vector<uint64_t> all;
   all.reserve(total);
   for (const auto& k : keys) all.insert(all.end(), k.begin(), k.end());
+#if NEXDYN_PARALLEL_STD_THREADS
+  std::sort(all.begin(), all.end());  // see EmbreeDevice()
+#else
   tbb::parallel_sort(all.begin(), all.end());
+#endif
   all.erase(std::unique(all.begin(), all.end()), all.end());
   std::vector<IndexPair> pairs(all.size());
   for (size_t p = 0; p < all.size(); ++p) {
@@ -172,7 +180,14 @@ EmbreeDevice& EmbreeDevice::instance() {
 }
 
 EmbreeDevice::EmbreeDevice() {
+#if NEXDYN_PARALLEL_STD_THREADS
+  // ThreadSanitizer builds (engine/parallel.hpp): Embree's threads and TBB's scheduler are not
+  // instrumented, so TSan would see the callbacks' reads of data the caller wrote as races. The
+  // broad phase runs on the calling thread there; the engine's own parallel kernels stay parallel.
+  device_ = rtcNewDevice("threads=1");
+#else
   device_ = rtcNewDevice(nullptr);
+#endif
   if (device_ == nullptr) {
     throw std::runtime_error("rtcNewDevice failed: Embree error " +
                              std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))));
