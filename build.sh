@@ -11,20 +11,8 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libembree-dev
-          libsuitesparse-dev libopenblas0-pthread doctest-dev libbenchmark-dev
-          nlohmann-json3-dev libcli11-dev)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "build.sh: installing ${missing[*]}"
-  sudo=""
-  [ "$(id -u)" -ne 0 ] && sudo="sudo"
-  $sudo apt-get update
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${missing[@]}"
-fi
+source scripts/install_packages.sh
+install_missing "${nexdyn_packages[@]}"
 
 build_dir=${NEXDYN_BUILD_DIR:-build}
 # The tests ThreadSanitizer runs: those that run the parallel kernels on 1 and 2 threads.

@@ -20,20 +20,8 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=(fuzz_scene fuzz_msh fuzz_obj)
 
-packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libembree-dev
-          libsuitesparse-dev libopenblas0-pthread doctest-dev nlohmann-json3-dev libcli11-dev
-          clang-14 libclang-rt-14-dev)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "fuzz.sh: installing ${missing[*]}"
-  sudo=""
-  [ "$(id -u)" -ne 0 ] && sudo="sudo"
-  $sudo apt-get update
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${missing[@]}"
-fi
+source scripts/install_packages.sh
+install_missing "${nexdyn_packages[@]}" clang-14 libclang-rt-14-dev
 
 build_dir=build-fuzz
 # The targets live under tests/ (NEXDYN_TESTS on), but only they are built.
