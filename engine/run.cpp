@@ -322,9 +322,10 @@ fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const st
 }
 
 // Steps `simulation` from record.steps_done + 1 to record.total_steps, writing rows, frames and
-// checkpoints into `out`. `stats` and `timings` are open at the end of record.steps_done's rows.
+// checkpoints into `out` (and frame 0 first on a fresh run; a resumed one has it in its record).
+// `stats` and `timings` are open at the end of record.steps_done's rows.
 RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simulation, RunRecord record,
-                     RowFile& stats, RowFile& timings, bool show_progress) {
+                     RowFile& stats, RowFile& timings, bool show_progress, bool fresh) {
   const auto start = std::chrono::steady_clock::now();
   const fs::path frames_dir = out / "frames";
   auto write_frame = [&](int64_t frame) {
@@ -344,7 +345,7 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
   summary.steps_done = record.steps_done;
   StopSignals signals;
   ProgressBar progress(show_progress, record.total_steps);
-  if (record.steps_done == 0) write_frame(0);
+  if (fresh) write_frame(0);
   // A failed step leaves the simulation in the state before it (Simulation::step), so a
   // checkpoint taken then holds the last good state.
   auto checkpoint = [&] {
@@ -424,7 +425,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   RowFile stats(out, "stats", stats_header(scene));
   RowFile timings(out, "timings", timings_header());
   Simulation simulation(scene);
-  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress);
+  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true);
 }
 
 RunSummary resume_run(const fs::path& out, bool progress) {
@@ -475,7 +476,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       continue;
     }
     // Frames past the checkpoint are written again; the ones before are listed in its record.
-    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress);
+    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress, false);
   }
   throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");
 }
