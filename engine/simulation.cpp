@@ -151,13 +151,14 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
   // The state to go back to if this attempt fails.
   CheckpointWriter before;
   save(before);
+  auto go_back = [&] {
+    CheckpointReader in(before.bytes(), "the state before the failed step");
+    restore(in);
+  };
   const double t_start = state_.time;
   StepOutcome outcome = advance(dt, t_next, iterations);
   if (outcome.status == StepStatus::ok) return outcome;
-  {
-    CheckpointReader in(before.bytes(), "the state before the failed step");
-    restore(in);
-  }
+  go_back();
   if (level == halvings) {
     if (halvings == 0) return outcome;
     char where[160];
@@ -175,10 +176,7 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
     state_.time = t_mid;
     outcome = advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
   }
-  if (outcome.status != StepStatus::ok) {
-    CheckpointReader in(before.bytes(), "the state before the failed step");
-    restore(in);
-  }
+  if (outcome.status != StepStatus::ok) go_back();
   return outcome;
 }
 
