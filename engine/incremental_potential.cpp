@@ -219,30 +219,48 @@ std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils
   return lists;
 }
 
-void IncrementalPotential::remove_contact_acceleration(const double* x, std::vector<double>& a) {
+void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>& delta) {
+  const int64_t n = model_.num_dofs();
+  delta.assign(n, 0.0);
   if (!contact_ && !joints_) return;
   ProfileScope scope(profile_, StepPhase::barrier);
-  // grad of s_c kappa B and of s w Phi_joints = s_c Phi_joints; update_implicit divided them by
-  // s (with a minus: a force).
-  std::vector<double>& grad = contact_gradient_;
-  grad.assign(model_.num_dofs(), 0.0);
+  // The gradient of s_c kappa B + s_c D + s w Phi_joints (s w = s_c), summed in this order;
+  // divided by s (with a minus: a force) it is what update_implicit put into a_{n+1}. The
+  // contact and friction parts are kept apart as well, for the energy balance.
+  std::vector<double>& impulsive = contact_gradient_;
+  impulsive.assign(n, 0.0);
+  contact_force_.assign(contact_ ? n : 0, 0.0);
+  friction_force_.assign(friction_ ? n : 0, 0.0);
+  const double to_force = -1.0 / contact_scale_;
   if (contact_) {
     contact_->assemble(x, contact_scale_ * kappa_, false);
-    contact_->add_gradient(grad.data());
+    contact_->add_gradient_with_held(impulsive.data());
+    for (int64_t i = 0; i < n; ++i) contact_force_[i] = impulsive[i] * to_force;
   }
   if (friction_) {  // friction acts with the contact force that carries it
     friction_->compute_derivatives(x, contact_scale_, false);
-    friction_->add_gradient(grad.data());
+    friction_->add_gradient_with_held(impulsive.data());
+    std::vector<double>& friction = friction_gradient_;
+    friction.assign(n, 0.0);
+    friction_->add_gradient_with_held(friction.data());
+    for (int64_t i = 0; i < n; ++i) friction_force_[i] = friction[i] * to_force;
   }
+  joint_force_.assign(joints_ ? n : 0, 0.0);
   if (joints_) {
-    std::vector<double>& joint_grad = joint_gradient_;
-    joint_grad.assign(model_.num_dofs(), 0.0);
-    joints_->add_gradient(x, joint_grad.data());
-    for (int64_t i = 0; i < model_.num_dofs(); ++i) grad[i] += scale_ * joint_grad[i];
+    joint_gradient_.assign(n, 0.0);
+    joints_->add_gradient(x, joint_gradient_.data());  // of w Phi
+    const double to_joint_force = -1.0 / joints_->weight();
+    for (int64_t i = 0; i < n; ++i) {
+      impulsive[i] += scale_ * joint_gradient_[i];
+      joint_force_[i] = joint_gradient_[i] * to_joint_force;
+    }
   }
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
-    for (int d = 0; d < 3; ++d) a[3 * v + d] += grad[3 * v + d] / (scale_ * model_.mass[v]);
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{v} + d;
+      delta[i] = -(impulsive[i] / (scale_ * model_.mass[v]));
+    }
   }
 }
 

@@ -3,25 +3,27 @@
 //          + s (Psi_elastic(x) + Phi_joints(x) - sum_i m_i g . (x_i - x_tilde_i))
 //          + s_c (kappa B(x) + D(x)) + Phi_kinematic(x)
 // with w = 1 for dynamic schemes and 0 for "static", s the integrator's potential scale,
-// Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp), kappa B the IPC
-// barrier of contact (when the scene has contact) and D its lagged friction
-// (engine/contact/friction_potential.hpp), both weighted by s_c = s / gamma, and Phi_kinematic
-// the augmented Lagrangian that moves the vertices of moving boundaries and obstacles in contact
-// scenes (engine/kinematic_targets.hpp).
+// Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp, with its weight
+// 1 / (gamma c_a) inside), kappa B the IPC barrier of contact (when the scene has contact) and D
+// its lagged friction (engine/contact/friction_potential.hpp), both weighted by the contact
+// scale s_c = r h^2 (IntegratorParams::contact_scale), and Phi_kinematic the augmented
+// Lagrangian that moves the vertices of moving boundaries and obstacles in contact scenes
+// (engine/kinematic_targets.hpp).
 //
-// Why s / gamma: contact forces are impulsive. The trapezoidal rule (Newmark) would apply the
-// barrier force found at the end of a step half in this step and half again in the next, through
-// a_n; a barrier force is huge only in the last sliver of a step, so that second half pushes
-// bodies that are already separating and injects energy (measured: +130% in a head-on collision).
-// Instead the contact force f_c = -kappa grad B acts as one impulse h f_c at the end of the step:
-// with weight s / gamma the usual update v += h gamma a_{n+1} gives exactly that impulse, and
-// the simulation removes f_c from the acceleration carried to the next step
-// (contact_acceleration). Friction rides on the contact force and is treated alike. For
-// implicit Euler (gamma = 1) nothing changes. Joint forces are
-// treated the same way (weight 1 / gamma inside s Phi_joints): carried over by the trapezoidal
-// rule, the force of a stiff constraint alternates from step to step and the alternation grows
-// (measured on the double pendulum: the total energy went from 0.01% to 1e3% off in 70 steps).
-// As an end-of-step impulse it does not. Gravity is measured from
+// Why a weight of their own: contact forces are impulsive. The trapezoidal rule (Newmark) would
+// apply the barrier force found at the end of a step half in this step and half again in the
+// next, through a_n; a barrier force is huge only in the last sliver of a step, so that second
+// half pushes bodies that are already separating and injects energy (measured: +130% in a
+// head-on collision; +58% to +90% for a torus thrown at a plate under generalized-alpha). Instead
+// the contact force f_c = -kappa grad B acts as one impulse h f_c at the end of the step, which
+// moves the position by s_c M^-1 f_c and never enters the acceleration carried to the next step
+// (Simulation::update_with_contact; the weight r and the start-of-step "contact memory" that
+// keeps resting contacts at rest are explained at IntegratorParams::contact_weight). Friction
+// rides on the contact force and is treated alike. Joint forces are end-of-step impulses too
+// (weight s / (gamma c_a), the one that makes v += h gamma abar_{n+1} give exactly h f):
+// carried over by the trapezoidal rule, the force of a stiff constraint alternates from step to
+// step and the alternation grows (measured on the double pendulum: the total energy went from
+// 0.01% to 1e3% off in 70 steps). Gravity is measured from
 // x_tilde rather than from the origin: that only shifts E by a constant, but keeps its magnitude
 // near the size of the changes the line search compares, so round-off does not swamp the Armijo
 // test.
@@ -117,10 +119,15 @@ class IncrementalPotential {
   const CscPattern& elastic_pattern() const { return elastic_.pattern(); }
 
   double barrier_stiffness() const { return kappa_; }
-  // a -= (s_c / s) M^-1 f_c(x) on free vertices: what update_implicit put into a_{n+1} for the
-  // contact force f_c = -kappa grad B and the joint forces at x, taken out again (see the top of
-  // this file).
-  void remove_contact_acceleration(const double* x, std::vector<double>& a);
+  // At the solution x of a step: the acceleration that the impulsive forces (contact
+  // f_c = -kappa grad B, friction f_f = -grad D and the joint forces) put into a_{n+1} through
+  // update_implicit, delta = (s_c / s) M^-1 f on free vertices (0 on held ones), which the step
+  // takes out again (see the top of this file); and f_c and f_f themselves, held vertices
+  // included, for the energy balance (contact_force(), friction_force(); empty without contact).
+  void impulsive_forces(const double* x, std::vector<double>& delta);
+  const std::vector<double>& contact_force() const { return contact_force_; }    // (3n) [N]
+  const std::vector<double>& friction_force() const { return friction_force_; }  // (3n) [N], or empty
+  const std::vector<double>& joint_force() const { return joint_force_; }        // (3n) [N], or empty
   BarrierPotential* contact() const { return contact_; }
 
   // What carries over from step to step besides the State: the barrier stiffness and the
@@ -144,8 +151,9 @@ class IncrementalPotential {
   StepProfile* profile_ = nullptr;
   std::unique_ptr<ContactPattern> contact_pattern_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
-  std::vector<double> contact_gradient_;  // (3n) workspaces of remove_contact_acceleration
-  std::vector<double> joint_gradient_;
+  // (3n) outputs and workspaces of impulsive_forces
+  std::vector<double> contact_force_, friction_force_, joint_force_, contact_gradient_, friction_gradient_,
+      joint_gradient_;
   // (num_groups) workspaces of group_energy, one per term
   std::vector<double> group_elastic_, group_joints_, group_barrier_, group_friction_;
   const std::vector<double>* x_tilde_ = nullptr;

@@ -49,6 +49,7 @@ class JointSet {
   // Newmark, where joint forces act as end-of-step impulses like contact forces
   // (incremental_potential.hpp).
   void set_weight(double weight) { weight_ = weight; }
+  double weight() const { return weight_; }
 
   // c_j(x) of joint j.
   Eigen::Vector3d violation(const double* x, int64_t j) const;

@@ -20,8 +20,33 @@ namespace nexdyn {
 
 namespace fs = std::filesystem;
 
+void override_integrator(Scene& scene, const std::string& name, double rho_inf) {
+  if (!name.empty()) {
+    const auto preset = integrator_preset(name);
+    if (!preset) {
+      std::string list;
+      for (const std::string& n : integrator_preset_names()) list += (list.empty() ? "" : ", ") + n;
+      throw std::runtime_error("--integrator: unknown integrator \"" + name + "\" (known: " + list + ")");
+    }
+    if (scene.contact.enabled && preset->is_explicit())
+      throw std::runtime_error("--integrator: " + name + " is explicit, and explicit schemes cannot "
+                               "keep contact intersection-free (the scene has contact)");
+    scene.time.integrator = *preset;
+  }
+  if (std::isnan(rho_inf)) return;
+  char value[32];
+  std::snprintf(value, sizeof value, "%g", rho_inf);
+  if (!(rho_inf >= 0.0 && rho_inf <= 1.0))
+    throw std::runtime_error(std::string("--rho-inf: expected 0 <= rho_inf <= 1, got ") + value);
+  if (scene.time.integrator.name != "generalized_alpha")
+    throw std::runtime_error(std::string("--rho-inf ") + value + ": only generalized_alpha has it (the integrator is \"" +
+                             scene.time.integrator.name + "\"; add --integrator generalized_alpha)");
+  scene.time.integrator = generalized_alpha(rho_inf);
+}
+
 std::string stats_header(const Scene& scene) {
-  return std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation") + ",retries";
+  return std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation") + ",retries" +
+         kBalanceColumns;
 }
 
 std::string stats_row(const StepStats& s) {
@@ -37,7 +62,11 @@ std::string stats_row(const StepStats& s) {
     std::snprintf(buf, sizeof(buf), ",%.17g", *s.joint_violation);
     row += buf;
   }
-  return row + "," + std::to_string(s.retries);
+  row += "," + std::to_string(s.retries);
+  const EnergyBalance& b = s.balance;
+  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g", b.boundary_work, b.friction_dissipated,
+                b.kappa_energy, b.integrator_energy);
+  return row + buf;
 }
 
 namespace {
@@ -190,6 +219,7 @@ struct RunRecord {
   uint32_t scene_crc = 0;    // of the scene file's bytes
   uint32_t model_crc = 0;    // of the model built from it (meshes included)
   std::string integrator;    // --integrator override, or empty
+  double rho_inf = std::numeric_limits<double>::quiet_NaN();  // --rho-inf override, or NaN
   int64_t total_steps = 0;
   int64_t checkpoint_every = 0;
   int64_t steps_done = 0;
@@ -220,6 +250,7 @@ void put_record(CheckpointWriter& out, const RunRecord& r) {
   out.put(r.scene_crc);
   out.put(r.model_crc);
   out.put_string(r.integrator);
+  out.put(r.rho_inf);
   out.put(r.total_steps);
   out.put(r.checkpoint_every);
   out.put(r.steps_done);
@@ -239,6 +270,7 @@ RunRecord get_record(CheckpointReader& in) {
   r.scene_crc = in.get<uint32_t>();
   r.model_crc = in.get<uint32_t>();
   r.integrator = in.get_string();
+  r.rho_inf = in.get<double>();
   r.total_steps = in.get<int64_t>();
   r.checkpoint_every = in.get<int64_t>();
   r.steps_done = in.get<int64_t>();
@@ -419,6 +451,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   record.scene_crc = file_crc(scene.file);
   record.model_crc = model_crc(scene.model);
   record.integrator = options.integrator;
+  record.rho_inf = options.rho_inf;
   record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
   record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
 
@@ -454,10 +487,10 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       if (model_crc(scene->model) != record.model_crc)
         throw std::runtime_error(record.scene_file.string() + ": a mesh changed since the run started; "
                                  "resuming would not continue the same run");
-      if (!record.integrator.empty()) {
-        const auto preset = integrator_preset(record.integrator);
-        if (!preset) in.fail("unknown integrator \"" + record.integrator + "\"");
-        scene->time.integrator = *preset;
+      try {
+        override_integrator(*scene, record.integrator, record.rho_inf);
+      } catch (const std::runtime_error& e) {
+        in.fail(std::string("the recorded integrator: ") + e.what());
       }
       simulation = std::make_unique<Simulation>(*scene);
       simulation->restore(in);

@@ -22,6 +22,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <string>
 
 namespace nexdyn {
@@ -30,6 +31,11 @@ namespace nexdyn {
 inline constexpr const char* kStatsHeader =
     "step,time,kinetic_energy,elastic_energy,gravity_energy,barrier_energy,total_energy,"
     "momentum_x,momentum_y,momentum_z,newton_iterations,contacts,min_distance,wall_seconds";
+// The energy balance of each step (engine/energy_balance.hpp), the last columns: the change of
+// total_energy from the row before (or from the start) is
+// boundary_work - friction_dissipated + kappa_energy + integrator_energy.
+inline constexpr const char* kBalanceColumns =
+    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy";
 
 // timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
 // the rest of the step, of writing its stats row and frames, and the total, in milliseconds.
@@ -41,7 +47,13 @@ struct RunOptions {
   bool progress = false;          // draw a progress bar on stderr
   int64_t checkpoint_every = -1;  // -1: the scene's output.checkpoint_every; 0: only on a signal
   std::string integrator;         // --integrator given to run (recorded for resume), or empty
+  double rho_inf = std::numeric_limits<double>::quiet_NaN();  // --rho-inf (recorded), or NaN
 };
+
+// The integrator of the command line (--integrator NAME, --rho-inf R) in place of the scene's:
+// an empty name keeps the scene's scheme, a NaN rho_inf its rho_inf. Throws std::runtime_error
+// naming the option and the value.
+void override_integrator(Scene& scene, const std::string& name, double rho_inf);
 
 struct RunSummary {
   bool ok = true;
@@ -68,7 +80,8 @@ inline int64_t steps_run(const RunSummary& s) { return s.steps_done - s.first_st
 // Newton iterations per step: 4.5; peak Cholesky factors 1.2 MB", or "" when no step was done.
 std::string profile_line(const RunSummary& summary);
 
-// stats.csv's header for this scene: kStatsHeader, joint_violation with joints, then retries.
+// stats.csv's header for this scene: kStatsHeader, joint_violation with joints, retries, then
+// kBalanceColumns.
 std::string stats_header(const Scene& scene);
 std::string stats_row(const StepStats& s);
 

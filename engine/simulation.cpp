@@ -76,7 +76,7 @@ Simulation::Simulation(const Scene& scene)
   state_.a.assign(n, 0.0);
   state_.x_tilde = state_.x;
   // Prescribed vertices start with their prescribed velocity and acceleration.
-  prescribe(0.0, state_.x, &state_.v, &state_.a);
+  prescribe(0.0, state_.x, &state_.v, &state_.a, nullptr);
   if (scene.time.consistent_initial_acceleration && !scene.time.integrator.is_static) {
     if (!explicit_acceleration(state_.x, state_.a))
       throw SceneError(scene.file.string() + ": the initial state has non-finite forces (inverted tet?)");
@@ -91,10 +91,16 @@ Simulation::Simulation(const Scene& scene)
     std::fill(state_.v.begin(), state_.v.end(), 0.0);
     std::fill(state_.a.begin(), state_.a.end(), 0.0);
   }
+  // Generalized-alpha starts its auxiliary acceleration at the consistent one (Arnold and
+  // Bruls' a_0 = q''_0: the positions and velocities stay second order).
+  state_.a_bar = state_.a;
+  StepStats start;
+  measure(start);
+  energy_before_ = start.total_energy;
 }
 
 void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>* v,
-                           std::vector<double>* a, bool kinematic) const {
+                           std::vector<double>* a, std::vector<double>* a_bar, bool kinematic) const {
   if (!model_.has_dirichlet()) return;
   for (int32_t i = 0; i < model_.num_vertices; ++i) {
     const int32_t id = model_.dirichlet[i];
@@ -107,6 +113,7 @@ void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>
     Eigen::Vector3d::Map(&x[3 * i]) = m.center + m.velocity * t + r;
     if (v) Eigen::Vector3d::Map(&(*v)[3 * i]) = m.velocity + w.cross(r);
     if (a) Eigen::Vector3d::Map(&(*a)[3 * i]) = w.cross(w.cross(r));
+    if (a_bar) Eigen::Vector3d::Map(&(*a_bar)[3 * i]) = w.cross(w.cross(r));
   }
 }
 
@@ -129,6 +136,7 @@ StepOutcome Simulation::step() {
   const auto start = std::chrono::steady_clock::now();
   int iterations = 0, retries = 0;
   const double t_next = state_.time + scene_.time.dt;
+  balance_ = {};
   StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
   stats_.retries = retries;
   if (outcome.status != StepStatus::ok) return outcome;
@@ -141,6 +149,11 @@ StepOutcome Simulation::step() {
   {
     ProfileScope scope(&profile_, StepPhase::measure);
     measure(stats_);
+    // What the named terms do not explain is the time integration's own doing.
+    balance_.integrator_energy = (stats_.total_energy - energy_before_) - balance_.boundary_work +
+                                 balance_.friction_dissipated - balance_.kappa_energy;
+    stats_.balance = balance_;
+    energy_before_ = stats_.total_energy;
   }
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return outcome;
@@ -151,9 +164,11 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
   // The state to go back to if this attempt fails.
   CheckpointWriter before;
   save(before);
+  const EnergyBalance balance_before = balance_;
   auto go_back = [&] {
     CheckpointReader in(before.bytes(), "the state before the failed step");
     restore(in);
+    balance_ = balance_before;
   };
   const double t_start = state_.time;
   StepOutcome outcome = advance(dt, t_next, iterations);
@@ -182,33 +197,34 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
 
 StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
   dt_ = dt;
-  const IntegratorParams& integrator = scene_.time.integrator;
+  const IntegratorParams& integrator = step_scheme(dt);
   StepOutcome outcome;
+  const double kappa_before = potential_.barrier_stiffness();
+  const double held_kinetic_before = held_kinetic_energy(model_, state_.v);
 
-  predict_x_tilde(integrator, dt, state_.x, state_.v, state_.a, state_.x_tilde);
+  predict_x_tilde(integrator, dt, state_.x, state_.v, state_.a, state_.a_bar, state_.x_tilde);
   if (integrator.is_explicit()) {
     x_next_ = state_.x_tilde;
-    prescribe(t_next, x_next_, nullptr, nullptr);
+    prescribe(t_next, x_next_, nullptr, nullptr, nullptr);
     a_next_ = state_.a;  // prescribed vertices keep theirs until prescribe() below
     if (!explicit_acceleration(x_next_, a_next_)) {
       outcome = {StepStatus::non_finite, "non-finite forces after the explicit update (the step "
                                          "is above the stability limit or a tet inverted)"};
       return outcome;
     }
-    update_explicit(integrator, dt, a_next_, state_.v, state_.a);
-    state_.x.swap(x_next_);
+    update_explicit(integrator, dt, a_next_, state_.v, state_.a, state_.a_bar);
   } else {
     if (!newton_) {
       newton_ = std::make_unique<NewtonSolver>(model_, potential_);
       newton_->set_profile(&profile_);
     }
     const double scale = integrator.potential_scale(dt);
-    potential_.begin_step(state_.x_tilde, scale, integrator.is_static ? scale : scale / integrator.gamma,
-                          !integrator.is_static);
+    potential_.begin_step(state_.x_tilde, scale, integrator.contact_scale(dt), !integrator.is_static);
+    add_contact_memory(integrator, dt);
     if (!kinematic_.empty()) {
       std::vector<double>& target = a_next_;
       target = state_.x;
-      prescribe(t_next, target, nullptr, nullptr);
+      prescribe(t_next, target, nullptr, nullptr, nullptr);
       kinematic_.set_targets(target);
       if (kinematic_on_target_) newton_->hold(kinematic_.vertices(), false);
       kinematic_on_target_ = false;
@@ -237,17 +253,109 @@ StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
       outcome = {result.status, result.message};
       return outcome;
     }
-    if (integrator.is_static) {
-      state_.x.swap(x_next_);
-    } else {
-      update_implicit(integrator, dt, x_next_, state_.x_tilde, state_.v, state_.a);
-      potential_.remove_contact_acceleration(x_next_.data(), state_.a);
-      state_.x.swap(x_next_);
+    if (!integrator.is_static) {
+      if (contact_) {
+        update_with_contact(integrator, dt);
+      } else {
+        update_implicit(integrator, dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
+        // Joint forces act as one impulse at the end of the step: out of the acceleration
+        // carried to the next step (engine/incremental_potential.hpp).
+        potential_.impulsive_forces(x_next_.data(), impulse_);
+        remove_impulse(integrator, impulse_, state_.a, state_.a_bar);
+      }
+    } else if (contact_) {
+      potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for the balance
     }
   }
-  prescribe(t_next, state_.x, integrator.is_static ? nullptr : &state_.v,
-            integrator.is_static ? nullptr : &state_.a);
+  account_energy(state_.x, x_next_, kappa_before);
+  state_.x.swap(x_next_);
+  const bool dynamic = !integrator.is_static;
+  prescribe(t_next, state_.x, dynamic ? &state_.v : nullptr, dynamic ? &state_.a : nullptr,
+            dynamic ? &state_.a_bar : nullptr);
+  balance_.boundary_work += held_kinetic_energy(model_, state_.v) - held_kinetic_before;
   return outcome;
+}
+
+const IntegratorParams& Simulation::step_scheme(double dt) {
+  const IntegratorParams& scheme = scene_.time.integrator;
+  if (!contact_ || !contact_memory_.empty() || scheme.contact_memory_scale(dt) == 0.0) return scheme;
+  // No contact force of a step before this one to remember: the first step, or the first after
+  // a checkpoint written without it. Contacts already touching at x_n would then be taken for new
+  // ones, and a body resting on a slope would be kicked by the difference; implicit Euler, whose
+  // contact weight is its own steady one, takes this step instead and leaves the memory for the
+  // next. Without touching contacts the memory is zero.
+  contact_->find_candidates(state_.x.data(), nullptr);
+  if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat()) {
+    static const IntegratorParams kEuler = *integrator_preset("implicit_euler");
+    return kEuler;
+  }
+  contact_memory_.assign(model_.num_dofs(), 0.0);
+  return scheme;
+}
+
+void Simulation::add_contact_memory(const IntegratorParams& integrator, double dt) {
+  const double weight = integrator.contact_memory_scale(dt);
+  if (!contact_ || weight == 0.0 || contact_memory_.empty()) return;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
+    for (int d = 0; d < 3; ++d) state_.x_tilde[3 * v + d] += weight * contact_memory_[3 * v + d] / model_.mass[v];
+  }
+}
+
+void Simulation::update_with_contact(const IntegratorParams& p, double dt) {
+  // a_{n+1} = M^-1 (elastic + gravity forces) at x_{n+1}, evaluated, not taken from the
+  // positions: a stiff barrier turns the small error that Newton's tolerance leaves in x_{n+1}
+  // into a large error of the contact force, which a history built from (x - x_tilde) / s
+  // minus the contact force would carry into every later step (it made a toppled cube stack's
+  // kinetic energy grow to 1e8 J). The positions decide the contact impulse instead: whatever
+  // of x_{n+1} - x_tilde the smooth and joint forces do not explain, so the velocity stays as
+  // close to the positions as the tolerance, as implicit Euler's does.
+  a_next_ = state_.a;  // held vertices keep theirs until prescribe()
+  explicit_acceleration(x_next_, a_next_);
+  potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for joints and the balance
+  const std::vector<double>& joint = potential_.joint_force();
+  const double s = p.potential_scale(dt), s_c = p.contact_scale(dt);
+  const double s_j = joints_.empty() ? 0.0 : s * joints_.weight();
+  const double c_a = p.c_a(), c_f = p.c_f(), c_m = p.c_m(), gamma = p.gamma;
+  // Kept when the scene's scheme uses it (also after a first step taken by implicit Euler).
+  const bool remember = scene_.time.integrator.contact_memory_scale(dt) != 0.0;
+  if (remember) contact_memory_.assign(model_.num_dofs(), 0.0);
+  std::vector<double>& x_tilde = state_.x_tilde;
+  std::vector<double>&v = state_.v, &a = state_.a, &a_bar = state_.a_bar;
+  for (int32_t vertex = 0; vertex < model_.num_vertices; ++vertex) {
+    if (model_.dirichlet[vertex] >= 0) continue;
+    const double m = model_.mass[vertex];
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{vertex} + d;
+      const double a_new = a_next_[i];
+      const double j_joint = joint.empty() ? 0.0 : joint[i] / m;
+      const double j_contact = (x_next_[i] - x_tilde[i] - s * a_new - s_j * j_joint) / s_c;
+      const double a_bar_new = c_a * a_new + (c_f * a[i] - c_m * a_bar[i]);
+      v[i] += dt * ((1.0 - gamma) * a_bar[i] + gamma * a_bar_new) + dt * (j_contact + j_joint);
+      a[i] = a_new;
+      a_bar[i] = a_bar_new;
+      if (remember) contact_memory_[i] = m * j_contact;
+    }
+  }
+}
+
+void Simulation::account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new,
+                                double kappa_before) {
+  const std::vector<double> none;
+  const std::vector<double>& contact_force = contact_ ? potential_.contact_force() : none;
+  const std::vector<double>& friction_force = friction_ ? potential_.friction_force() : none;
+  if (held_vertices_move(model_, x_old, x_new)) {
+    const int64_t n = model_.num_dofs();
+    elastic_gradient_old_.resize(n);
+    elastic_gradient_new_.resize(n);
+    elastic_.energy_gradient(x_old.data(), elastic_gradient_old_.data());
+    elastic_.energy_gradient(x_new.data(), elastic_gradient_new_.data());
+    balance_.boundary_work += boundary_work(model_, x_old, x_new, elastic_gradient_old_, elastic_gradient_new_,
+                                            {&contact_force, &friction_force});
+  }
+  balance_.friction_dissipated += friction_dissipation(x_old, x_new, friction_force);
+  const double kappa = potential_.barrier_stiffness();
+  if (contact_ && kappa != kappa_before) balance_.kappa_energy += (kappa - kappa_before) * contact_->energy(x_new.data());
 }
 
 NewtonResult Simulation::solve_step(int& iterations) {
@@ -288,7 +396,8 @@ NewtonResult Simulation::solve_with_joints(int& iterations) {
   if (!joints_.empty() && !joint_stiffness_set_) {
     // The potential scale is fixed for a run (dt and the scheme do not change).
     const IntegratorParams& integrator = scene_.time.integrator;
-    joints_.set_weight(integrator.is_static ? 1.0 : 1.0 / integrator.gamma);
+    // The joint force is impulsive like the contact force: weight s_c / s = 1 / (gamma c_a).
+    joints_.set_weight(integrator.joint_weight());
     joints_.set_stiffness(integrator.potential_scale(dt), kJointStiffnessRatio,
                           elastic_.coupling_slabs());
     joint_stiffness_set_ = true;
@@ -362,14 +471,14 @@ StepOutcome Simulation::start_point(double t_next) {
   // x_n with the held vertices at their targets: the fallback start. (Kinematic vertices, which
   // exist only with contact, start at x_n: the solve carries them.)
   x_next_ = state_.x;
-  prescribe(t_next, x_next_, nullptr, nullptr, false);
+  prescribe(t_next, x_next_, nullptr, nullptr, nullptr, false);
   const int64_t n = model_.num_dofs();
   if (!contact_) {
     // Start from the predictor when it is a valid state (fewer iterations), else from x_n.
     if (is_static) return {};
     std::vector<double>& trial = a_next_;
     trial = state_.x_tilde;
-    prescribe(t_next, trial, nullptr, nullptr);
+    prescribe(t_next, trial, nullptr, nullptr, nullptr);
     if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
     return {};
   }
@@ -382,14 +491,17 @@ StepOutcome Simulation::start_point(double t_next) {
   // sliding one. From x_n (no slip) a contact that can stick stays stuck, and a body whose
   // momentum beats static friction has no stuck minimum and slides all the same.
   if (is_static || (friction_ && friction_->table().has_static_peak())) return {};
-  // Then as far toward the predictor (kinematic vertices: toward their targets) as CCD allows
-  // (it stops short of any contact).
+  // Then as far toward x_n + h v_n (kinematic vertices: toward their targets) as CCD allows (it
+  // stops short of any contact). That is implicit Euler's predictor; the second-order schemes'
+  // x_tilde adds h^2 terms of the acceleration (gravity, and the contact force's memory) that
+  // would start a body resting in contact deep in the barrier, where Newton needs ten times
+  // the iterations to climb back (measured on scenes/slope_stick.json).
   kinematic_.motion_to_targets(x_next_.data(), motion_.data());
   for (int32_t v = 0; v < model_.num_vertices; ++v)
     if (model_.dirichlet[v] < 0)
       for (int d = 0; d < 3; ++d) {
         const int64_t i = 3 * int64_t{v} + d;
-        motion_[i] = state_.x_tilde[i] - x_next_[i];
+        motion_[i] = state_.x[i] + dt_ * state_.v[i] - x_next_[i];
       }
   const double alpha = contact_->max_step(x_next_.data(), motion_.data());
   std::vector<double>& trial = a_next_;
@@ -436,6 +548,9 @@ void Simulation::save(CheckpointWriter& out) const {
   out.put_vector(state_.x);
   out.put_vector(state_.v);
   out.put_vector(state_.a);
+  out.put_vector(state_.a_bar);
+  out.put_vector(contact_memory_);
+  out.put(energy_before_);
   potential_.save(out);
   out.put<uint8_t>(joint_stiffness_set_);
   out.put(joint_stiffening_);
@@ -452,8 +567,16 @@ void Simulation::restore(CheckpointReader& in) {
   state.x = in.get_vector<double>(n);
   state.v = in.get_vector<double>(n);
   state.a = in.get_vector<double>(n);
-  if (state.step < 0 || !std::isfinite(state.time)) in.fail("negative step or non-finite time");
-  for (const std::vector<double>* field : {&state.x, &state.v, &state.a})
+  state.a_bar = in.get_vector<double>(n);
+  std::vector<double> contact_memory = in.get_vector<double>();
+  if (!contact_memory.empty() && static_cast<int64_t>(contact_memory.size()) != n)
+    in.fail("contact memory of the wrong size");
+  if (!std::all_of(contact_memory.begin(), contact_memory.end(), [](double f) { return std::isfinite(f); }))
+    in.fail("non-finite contact memory");
+  const double energy_before = in.get<double>();
+  if (state.step < 0 || !std::isfinite(state.time) || !std::isfinite(energy_before))
+    in.fail("negative step, or non-finite time or energy");
+  for (const std::vector<double>* field : {&state.x, &state.v, &state.a, &state.a_bar})
     if (!std::all_of(field->begin(), field->end(), [](double value) { return std::isfinite(value); }))
       in.fail("non-finite positions, velocities or accelerations");
   state.x_tilde = state.x;
@@ -466,6 +589,8 @@ void Simulation::restore(CheckpointReader& in) {
   kinematic_on_target_ = false;
   newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
   state_ = std::move(state);
+  contact_memory_ = std::move(contact_memory);
+  energy_before_ = energy_before;
 }
 
 }  // namespace nexdyn

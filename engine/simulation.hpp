@@ -1,18 +1,28 @@
 // The time step: the stage list every step runs, in order.
 //
 //   1. prescribe   Dirichlet vertices move to their targets at t + dt (analytic x, v, a)
-//   2. predict     x_tilde = x + h v + alpha (1 - 2 beta) h^2 a          (integrator.cpp)
+//   2. predict     x_tilde from x, v, a and a_bar                            (integrator.cpp),
+//                  plus the start-of-step contact force's share (contact memory)
 //   3. solve       implicit: Newton on the incremental potential          (solver/newton.cpp),
-//                  with contact starting from the largest collision-free part of the
-//                  predictor's motion
+//                  with contact starting from the largest collision-free part of the motion
+//                  x_n -> x_n + h v_n
 //                  explicit: x = x_tilde, a = M^-1 f(x)
-//   4. update      a, v from the integrator family                          (integrator.cpp)
-//   5. measure     energies and momentum for stats.csv
+//   4. update      a, a_bar, v from the integrator family; contact, friction and joint forces
+//                  act as one impulse at the end of the step and stay out of a and a_bar
+//                  (integrator.cpp; update_with_contact)
+//   5. account     the step's energy balance: boundary work, friction, kappa (energy_balance.hpp)
+//   6. measure     energies and momentum for stats.csv; what the balance's terms leave
+//                  unexplained is the integrator's energy
+//
+// The scheme of a step is the scene's, except for a step that starts in contact before any
+// contact memory exists (the first step of a scene whose bodies start touching), which implicit
+// Euler takes (step_scheme).
 //
 // A Simulation owns the State and the solver workspaces; the Model stays const.
 #pragma once
 
 #include "engine/elastic_assembly.hpp"
+#include "engine/energy_balance.hpp"
 #include "engine/incremental_potential.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/scene/scene.hpp"
@@ -46,7 +56,8 @@ struct StepStats {
   double min_distance = 0.0;
   double wall_seconds = 0.0;
   std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
-  int retries = 0;  // failed attempts of this step, each retried as two of half the dt (last column)
+  int retries = 0;  // failed attempts of this step, each retried as two of half the dt
+  EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
 };
 
 struct StepOutcome {
@@ -85,7 +96,7 @@ class Simulation {
   // Held vertices at their prescribed positions (and velocities, accelerations) at time t;
   // kinematic ones too unless `kinematic` is false.
   void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a,
-                 bool kinematic = true) const;
+                 std::vector<double>* a_bar, bool kinematic = true) const;
   // a = M^-1 f(x) on free vertices; false if f is not finite.
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
 
@@ -94,6 +105,16 @@ class Simulation {
   StepOutcome advance(double dt, double t_next, int& iterations);
   // advance(), and on failure the state put back and the interval taken in two halves.
   StepOutcome advance_or_split(double dt, double t_next, int level, int& iterations, int& retries);
+  // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
+  // energy of the motion x_old -> x_new to balance_.
+  void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before);
+  // The scheme of the step: the scene's, or implicit Euler for a step that starts in contact with
+  // no contact force of a previous step to remember (IntegratorParams::contact_memory_scale).
+  const IntegratorParams& step_scheme(double dt);
+  // x_tilde += (alpha - r) h^2 M^-1 f_n: the start-of-step contact force's part of the step.
+  void add_contact_memory(const IntegratorParams& integrator, double dt);
+  // The update of a, a_bar, v after a solve with contact (and f_{n+1} kept as the next f_n).
+  void update_with_contact(const IntegratorParams& integrator, double dt);
   // Newton's starting point for the step to t_next (written into x_next_).
   StepOutcome start_point(double t_next);
   // The Newton solves of the step: with kinematic vertices, first until they can be moved onto
@@ -125,6 +146,13 @@ class Simulation {
   double kinematic_stiffening_ = 1.0;      // the same for the kinematic vertices
   bool kinematic_on_target_ = false;       // this step's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
+  std::vector<double> impulse_;  // (3n) acceleration of the impulsive forces at the step's end
+  // (3n) the contact and friction force on each free vertex at the end of the last step [N]: the
+  // next step's start-of-step contact force (IntegratorParams::contact_memory_scale); 0 elsewhere
+  std::vector<double> contact_memory_;
+  std::vector<double> elastic_gradient_old_, elastic_gradient_new_;  // (3n) of the boundary work
+  EnergyBalance balance_;        // of the step under way, summed over its successful attempts
+  double energy_before_ = 0.0;   // [J] total energy of state_, where the next step's balance starts
   double dt_ = 0.0;  // [s] of the attempt under way (the scene's dt, or a part of it)
 };
 

@@ -15,7 +15,10 @@ struct State {
   double time = 0.0;   // [s]
   std::vector<double> x;        // (num_vertices x 3) positions x_n [m]
   std::vector<double> v;        // (num_vertices x 3) velocities v_n [m/s]
-  std::vector<double> a;        // (num_vertices x 3) accelerations a_n [m/s^2]
+  std::vector<double> a;        // (num_vertices x 3) accelerations a_n = M^-1 f(x_n) [m/s^2]
+  // (num_vertices x 3) the acceleration the Newmark update of x and v uses [m/s^2]: a itself,
+  // except under generalized-alpha, whose auxiliary acceleration it is (engine/integrator.hpp)
+  std::vector<double> a_bar;
   std::vector<double> x_tilde;  // (num_vertices x 3) predictor of the step being solved [m]
 };
 

@@ -1,6 +1,6 @@
 // nexdyn: the command-line program (DESIGN.md section 6).
 //   nexdyn run SCENE.json [--out DIR] [--steps N] [--threads K] [--integrator NAME] [--quiet]
-//              [--checkpoint-every K]
+//              [--checkpoint-every K] [--rho-inf R]
 //   nexdyn resume DIR [--threads K] [--quiet]
 //   nexdyn check SCENE.json
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
@@ -13,28 +13,16 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <memory>
 
 namespace {
 
 using namespace nexdyn;
-
-void apply_integrator_override(Scene& scene, const std::string& name) {
-  if (name.empty()) return;
-  const auto preset = integrator_preset(name);
-  if (!preset) {
-    std::string list;
-    for (const std::string& n : integrator_preset_names()) list += (list.empty() ? "" : ", ") + n;
-    throw std::runtime_error("--integrator: unknown integrator \"" + name + "\" (known: " + list + ")");
-  }
-  if (scene.contact.enabled && preset->is_explicit())
-    throw std::runtime_error("--integrator: " + name + " is explicit, and explicit schemes cannot "
-                             "keep contact intersection-free (the scene has contact)");
-  scene.time.integrator = *preset;
-}
 
 void print_summary(const Scene& scene) {
   const Model& m = scene.model;
@@ -51,10 +39,11 @@ void print_summary(const Scene& scene) {
   std::printf("  materials %zu, total mass %.6g kg, boundary conditions %zu, obstacle planes %zu, "
               "obstacle meshes %zu\n", m.materials.size(), total_mass, boundary_entries,
               m.obstacle_planes.size(), obstacle_meshes);
-  std::printf("  integrator %s (alpha %.6g, beta %.6g, gamma %.6g), dt %.6g s, steps %lld\n",
-              scene.time.integrator.name.c_str(), scene.time.integrator.alpha,
-              scene.time.integrator.beta, scene.time.integrator.gamma, scene.time.dt,
-              static_cast<long long>(scene.time.steps));
+  const IntegratorParams& p = scene.time.integrator;
+  std::printf("  integrator %s (alpha %.6g, beta %.6g, gamma %.6g", p.name.c_str(), p.alpha, p.beta, p.gamma);
+  if (p.alpha_m != 0.0 || p.alpha_f != 0.0) std::printf(", alpha_m %.6g, alpha_f %.6g", p.alpha_m, p.alpha_f);
+  if (!std::isnan(p.rho_inf)) std::printf(", rho_inf %.6g", p.rho_inf);
+  std::printf("), dt %.6g s, steps %lld\n", scene.time.dt, static_cast<long long>(scene.time.steps));
 }
 
 }  // namespace
@@ -74,6 +63,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   run->add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
   run->add_option("--integrator", integrator, "Override the scene's integrator preset");
+  double rho_inf = std::numeric_limits<double>::quiet_NaN();
+  run->add_option("--rho-inf", rho_inf, "Spectral radius at infinity of generalized_alpha (0 to 1)");
   run->add_flag("--quiet", quiet, "No progress bar or summary");
   int64_t checkpoint_every = -1;
   run->add_option("--checkpoint-every", checkpoint_every,
@@ -130,13 +121,14 @@ int main(int argc, char** argv) {
       if (!quiet) std::printf("resumed after step %lld\n", static_cast<long long>(summary.first_step - 1));
     } else {
       Scene scene = load_scene(scene_path);
-      apply_integrator_override(scene, integrator);
+      override_integrator(scene, integrator, rho_inf);
       RunOptions options;
       options.out_dir = out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(out_dir);
       options.steps = steps;
       options.progress = !quiet && isatty(STDERR_FILENO);
       options.checkpoint_every = checkpoint_every;
       options.integrator = integrator;
+      options.rho_inf = rho_inf;
       out = options.out_dir;
       if (!quiet) print_summary(scene);
       summary = run_scene(scene, options);

@@ -764,6 +764,15 @@ void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vect
 
 void BarrierPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils_, gradients_, grad); }
 
+void BarrierPotential::add_gradient_with_held(double* grad) const {
+  // vertices_ holds the real ids; a vertex-plane stencil's second entry is the plane's index.
+  for (int64_t k = 0; k < num_stencils(); ++k)
+    for (int i = 0; i < stencil_size(kind_[k]); ++i) {
+      const int32_t v = vertices_[4 * k + i];
+      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients_[12 * k + 3 * i + r];
+    }
+}
+
 // ---- CCD --------------------------------------------------------------------------------------
 
 double BarrierPotential::max_step(const double* x, const double* p) {

@@ -118,6 +118,8 @@ class BarrierPotential {
   const std::vector<double>& local_hessians() const { return hessians_; }       // (slab_begin.back())
   // grad += the gradient of the last compute_derivatives(), in stencil order.
   void add_gradient(double* grad) const;
+  // The same with the held vertices' entries too (the force on a moving boundary).
+  void add_gradient_with_held(double* grad) const;
 
   // Largest alpha in (0, 1] such that x + t alpha p keeps every pair apart for t in [0, 1]
   // (conservative CCD: it never overshoots a contact and stops short of touching). Recomputes

@@ -199,4 +199,8 @@ void FrictionPotential::compute_derivatives(const double* x, double weight, bool
 
 void FrictionPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils_, gradients_, grad); }
 
+void FrictionPotential::add_gradient_with_held(double* grad) const {
+  add_stencil_gradients(vertices_, gradients_, grad);
+}
+
 }  // namespace nexdyn

@@ -71,6 +71,8 @@ class FrictionPotential {
   void compute_derivatives(const double* x, double weight, bool with_hessian,
                            const uint8_t* active = nullptr);
   void add_gradient(double* grad) const;
+  // The same with the held vertices' entries too (the force on a moving boundary).
+  void add_gradient_with_held(double* grad) const;
   const std::vector<int32_t>& stencils() const { return stencils_; }       // (num x 4), -1 = held/absent
   const std::vector<int64_t>& slab_begin() const { return slab_begin_; }   // (num + 1)
   const std::vector<double>& local_hessians() const { return hessians_; }

@@ -28,7 +28,7 @@
 
 namespace nexdyn {
 
-inline constexpr uint32_t kCheckpointFormat = 1;
+inline constexpr uint32_t kCheckpointFormat = 2;  // 2: generalized-alpha history and the energy balance
 
 // A checkpoint that cannot be used: unreadable, truncated, corrupt, or from another scene.
 struct CheckpointError : std::runtime_error {

@@ -189,7 +189,8 @@ bool boolean(const json& value, const Where& where) {
 // ---- settings ----------------------------------------------------------------------------------
 
 void read_time(const json& j, const Where& w, TimeSettings& time) {
-  check_keys(j, w, {"dt", "steps", "integrator", "alpha", "beta", "gamma", "initial_acceleration"});
+  check_keys(j, w, {"dt", "steps", "integrator", "rho_inf", "alpha", "beta", "gamma", "alpha_m", "alpha_f",
+                    "initial_acceleration"});
   if (j.contains("dt")) time.dt = positive(j["dt"], w["dt"]);
   if (j.contains("steps")) time.steps = integer(j["steps"], w["steps"], 1);
   if (j.contains("integrator")) {
@@ -202,17 +203,44 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
     }
     time.integrator = *preset;
   }
-  const bool custom = j.contains("alpha") || j.contains("beta") || j.contains("gamma");
+  if (j.contains("rho_inf")) {
+    if (time.integrator.name != "generalized_alpha")
+      w["rho_inf"].fail("rho_inf belongs to \"integrator\": \"generalized_alpha\", not " +
+                        show(json(time.integrator.name)), j["rho_inf"]);
+    const double rho = number(j["rho_inf"], w["rho_inf"]);
+    if (!(rho >= 0.0 && rho <= 1.0)) w["rho_inf"].fail("expected 0 <= rho_inf <= 1", j["rho_inf"]);
+    time.integrator = generalized_alpha(rho);
+  }
+  const bool weights = j.contains("alpha_m") || j.contains("alpha_f");
+  const bool custom = weights || j.contains("alpha") || j.contains("beta") || j.contains("gamma");
   if (custom) {
-    if (time.integrator.is_static) w.fail("alpha, beta and gamma cannot be combined with \"static\"");
-    if (j.contains("alpha")) time.integrator.alpha = positive(j["alpha"], w["alpha"]);
-    if (j.contains("beta")) time.integrator.beta = number(j["beta"], w["beta"]);
-    if (j.contains("gamma")) time.integrator.gamma = number(j["gamma"], w["gamma"]);
-    if (time.integrator.beta < 0.0 || time.integrator.beta > 0.5)
-      w["beta"].fail("expected 0 <= beta <= 0.5", j.value("beta", json(time.integrator.beta)));
-    if (time.integrator.gamma < 0.0 || time.integrator.gamma > 1.0)
-      w["gamma"].fail("expected 0 <= gamma <= 1", j.value("gamma", json(time.integrator.gamma)));
-    time.integrator.name = "custom";
+    // Custom parameters start from the named scheme; without one, from the plain family's
+    // reference, newmark (not from the default, whose generalized-alpha weights would stay).
+    if (!j.contains("integrator") && !j.contains("rho_inf")) time.integrator = *integrator_preset("newmark");
+    IntegratorParams& p = time.integrator;
+    if (p.is_static) w.fail("alpha, beta, gamma, alpha_m and alpha_f cannot be combined with \"static\"");
+    if (weights) {
+      // Generalized-alpha weights: beta and gamma follow them (second order, the most
+      // high-frequency damping for the weights) unless given as well.
+      if (j.contains("alpha_m")) p.alpha_m = number(j["alpha_m"], w["alpha_m"]);
+      if (j.contains("alpha_f")) p.alpha_f = number(j["alpha_f"], w["alpha_f"]);
+      if (!(p.alpha_f >= 0.0 && p.alpha_f <= 0.5))
+        w["alpha_f"].fail("expected 0 <= alpha_f <= 0.5", j.value("alpha_f", json(p.alpha_f)));
+      if (!(p.alpha_m >= -1.0 && p.alpha_m <= p.alpha_f))
+        w["alpha_m"].fail("expected -1 <= alpha_m <= alpha_f (" + show(json(p.alpha_f)) + ")",
+                          j.value("alpha_m", json(p.alpha_m)));
+      p = generalized_alpha_weights(p.alpha_m, p.alpha_f);
+    }
+    if (j.contains("alpha")) p.alpha = positive(j["alpha"], w["alpha"]);
+    if (j.contains("beta")) p.beta = number(j["beta"], w["beta"]);
+    if (j.contains("gamma")) p.gamma = number(j["gamma"], w["gamma"]);
+    if (p.beta < 0.0 || p.beta > 0.5)
+      w["beta"].fail("expected 0 <= beta <= 0.5", j.value("beta", json(p.beta)));
+    if (p.gamma < 0.0 || p.gamma > 1.0)
+      w["gamma"].fail("expected 0 <= gamma <= 1", j.value("gamma", json(p.gamma)));
+    if ((p.alpha_m != 0.0 || p.alpha_f != 0.0) && p.is_explicit())
+      w["beta"].fail("generalized-alpha weights need an implicit scheme (beta > 0)", json(p.beta));
+    p.name = "custom";
   }
   if (j.contains("initial_acceleration")) {
     const std::string mode = string(j["initial_acceleration"], w["initial_acceleration"]);

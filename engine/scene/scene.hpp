@@ -26,7 +26,7 @@ class SceneError : public std::runtime_error {
 struct TimeSettings {
   double dt = 0.01;                  // [s]
   int64_t steps = 100;
-  IntegratorParams integrator;       // default: newmark
+  IntegratorParams integrator = default_integrator();  // generalized_alpha, rho_inf 0.5
   bool consistent_initial_acceleration = true;  // a0 = M^-1 f(x0); false: a0 = 0
 };
 

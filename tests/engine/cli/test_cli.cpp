@@ -40,7 +40,7 @@ TEST_CASE("nexdyn run writes stats.csv with the exact header and frames and scen
   REQUIRE(r2.exit_code == 0);
   const auto rows1 = test::read_lines(out1 / "stats.csv");
   REQUIRE(rows1.size() == 31);
-  CHECK(rows1[0] == std::string(kStatsHeader) + ",retries");
+  CHECK(rows1[0] == std::string(kStatsHeader) + ",retries" + kBalanceColumns);
   CHECK(rows1[1].rfind("1,0.01,", 0) == 0);  // the first row is the state after step 1
   CHECK(stats_without_wall_time(out1 / "stats.csv") == stats_without_wall_time(out2 / "stats.csv"));
   CHECK_FALSE(fs::exists(out1 / "stats.partial.csv"));

@@ -4,6 +4,7 @@
 // the head-on collision and thread-count independence with contact.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/intersection.hpp"
+#include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -116,6 +117,20 @@ TEST_CASE("scene bullet_plate: a 40 m/s cube does not tunnel through a 2 cm plat
   }
   const double plate_lowest = lowest[0], cube_lowest = lowest[1];
   CHECK(cube_lowest > plate_lowest);
+}
+
+TEST_CASE("scene impact_plate: a ball at 30 m/s on a thin plate keeps every step and gains no energy") {
+  // Issue 16: under Newmark this scene gained 80% of its energy in 12 steps and failed at step
+  // 20. The default integrator must run it through, with the total energy (kinetic, elastic,
+  // gravity, barrier) never above its start plus 1%: the plate's clamps do no work.
+  const Scene scene = load_scene(test::scene_path("impact_plate.json"));
+  StepStats start;
+  Simulation(scene).measure(start);
+  const std::vector<StatsRow> rows = run_and_check("impact_plate", 40);
+  for (const StatsRow& row : rows) {
+    CAPTURE(row[kStep]);
+    CHECK(row[kTotal] <= start.total_energy + 0.01 * std::abs(start.total_energy));
+  }
 }
 
 TEST_CASE("scene cube_stack: the IPC paper's stack of five cubes, intersection-free for 5 s") {

@@ -65,6 +65,12 @@ TEST_CASE("scene errors name the file and the key and the value") {
        {"boundary[0]", "fix"}},
       {scene_with(R"("output": { "formats": ["png"] })"), {"output.formats[0]", "png"}},
       {scene_with(R"("time": { "dt": 0.01, "beta": 0.7 })"), {"time.beta", "0.7"}},
+      {scene_with(R"("time": { "integrator": "newmark", "rho_inf": 0.5 })"),
+       {"time.rho_inf", "generalized_alpha", "newmark", "0.5"}},
+      {scene_with(R"("time": { "integrator": "generalized_alpha", "rho_inf": 1.5 })"), {"time.rho_inf", "1.5"}},
+      {scene_with(R"("time": { "alpha_m": 0.3, "alpha_f": 0.2 })"), {"time.alpha_m", "alpha_f", "0.3"}},
+      {scene_with(R"("time": { "alpha_f": 0.6 })"), {"time.alpha_f", "0.6"}},
+      {scene_with(R"("time": { "alpha_f": 0.1, "beta": 0 })"), {"time.beta", "implicit"}},
       {"{ not json", {"bad.json", "JSON"}},
   };
   for (const Case& c : cases) {
@@ -76,6 +82,25 @@ TEST_CASE("scene errors name the file and the key and the value") {
       CHECK(message.find(part) != std::string::npos);
     }
   }
+}
+
+TEST_CASE("generalized-alpha from rho_inf, and HHT-alpha from alpha_f, take their Newmark parameters") {
+  const Scene ga = test::scene_from_json(scene_with(R"("time": { "integrator": "generalized_alpha", "rho_inf": 0.5 })"));
+  const IntegratorParams& p = ga.time.integrator;
+  CHECK(p.name == "generalized_alpha");
+  CHECK(p.rho_inf == 0.5);
+  CHECK(p.alpha_m == doctest::Approx(0.0).epsilon(1e-15));  // (2 rho - 1) / (rho + 1)
+  CHECK(p.alpha_f == doctest::Approx(1.0 / 3.0).epsilon(1e-15));
+  CHECK(p.gamma == doctest::Approx(0.5 + 1.0 / 3.0).epsilon(1e-15));
+  CHECK(2.0 * p.alpha * p.beta == doctest::Approx(0.25 * (4.0 / 3.0) * (4.0 / 3.0)).epsilon(1e-15));
+  // HHT-alpha with its alpha = -0.1: alpha_m = 0, alpha_f = 0.1, gamma = 0.6, beta = 1.1^2 / 4.
+  const Scene hht = test::scene_from_json(scene_with(R"("time": { "alpha_f": 0.1 })"));
+  const IntegratorParams& q = hht.time.integrator;
+  CHECK(q.name == "custom");
+  CHECK(q.alpha_m == 0.0);
+  CHECK(q.alpha_f == 0.1);
+  CHECK(q.gamma == doctest::Approx(0.6).epsilon(1e-15));
+  CHECK(2.0 * q.alpha * q.beta == doctest::Approx(1.1 * 1.1 / 4.0).epsilon(1e-15));
 }
 
 TEST_CASE("a good scene builds the buffers it describes") {
