@@ -49,6 +49,9 @@ struct IntegratorParams {
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
 
   bool is_explicit() const { return !is_static && beta == 0.0; }
+  bool is_implicit_euler() const {
+    return !is_static && alpha == 1.0 && beta == 0.5 && gamma == 1.0 && alpha_m == alpha_f;
+  }
   // The weights c_a, c_f, c_m of the auxiliary acceleration (see the top of this file).
   double c_a() const { return (1.0 - alpha_f) / (1.0 - alpha_m); }
   double c_f() const { return alpha_f / (1.0 - alpha_m); }

@@ -64,8 +64,8 @@ std::string stats_row(const StepStats& s) {
   }
   row += "," + std::to_string(s.retries);
   const EnergyBalance& b = s.balance;
-  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g", b.boundary_work, b.friction_dissipated,
-                b.kappa_energy, b.integrator_energy);
+  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g,%d", b.boundary_work, b.friction_dissipated,
+                b.kappa_energy, b.integrator_energy, s.guarded_steps);
   return row + buf;
 }
 
@@ -220,6 +220,7 @@ struct RunRecord {
   uint32_t model_crc = 0;    // of the model built from it (meshes included)
   std::string integrator;    // --integrator override, or empty
   double rho_inf = std::numeric_limits<double>::quiet_NaN();  // --rho-inf override, or NaN
+  std::string energy_guard;  // --energy-guard override ("on", "off"), or empty
   int64_t total_steps = 0;
   int64_t checkpoint_every = 0;
   int64_t steps_done = 0;
@@ -251,6 +252,7 @@ void put_record(CheckpointWriter& out, const RunRecord& r) {
   out.put(r.model_crc);
   out.put_string(r.integrator);
   out.put(r.rho_inf);
+  out.put_string(r.energy_guard);
   out.put(r.total_steps);
   out.put(r.checkpoint_every);
   out.put(r.steps_done);
@@ -271,6 +273,7 @@ RunRecord get_record(CheckpointReader& in) {
   r.model_crc = in.get<uint32_t>();
   r.integrator = in.get_string();
   r.rho_inf = in.get<double>();
+  r.energy_guard = in.get_string();
   r.total_steps = in.get<int64_t>();
   r.checkpoint_every = in.get<int64_t>();
   r.steps_done = in.get<int64_t>();
@@ -452,6 +455,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   record.model_crc = model_crc(scene.model);
   record.integrator = options.integrator;
   record.rho_inf = options.rho_inf;
+  record.energy_guard = options.energy_guard;
   record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
   record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
 
@@ -489,6 +493,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
                                  "resuming would not continue the same run");
       try {
         override_integrator(*scene, record.integrator, record.rho_inf);
+        if (!record.energy_guard.empty()) scene->time.energy_guard = record.energy_guard == "on";
       } catch (const std::runtime_error& e) {
         in.fail(std::string("the recorded integrator: ") + e.what());
       }

@@ -33,9 +33,10 @@ inline constexpr const char* kStatsHeader =
     "momentum_x,momentum_y,momentum_z,newton_iterations,contacts,min_distance,wall_seconds";
 // The energy balance of each step (engine/energy_balance.hpp), the last columns: the change of
 // total_energy from the row before (or from the start) is
-// boundary_work - friction_dissipated + kappa_energy + integrator_energy.
+// boundary_work - friction_dissipated + kappa_energy + integrator_energy; then guarded_steps,
+// the (sub)steps the energy guard retook with implicit Euler.
 inline constexpr const char* kBalanceColumns =
-    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy";
+    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps";
 
 // timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
 // the rest of the step, of writing its stats row and frames, and the total, in milliseconds.
@@ -48,6 +49,7 @@ struct RunOptions {
   int64_t checkpoint_every = -1;  // -1: the scene's output.checkpoint_every; 0: only on a signal
   std::string integrator;         // --integrator given to run (recorded for resume), or empty
   double rho_inf = std::numeric_limits<double>::quiet_NaN();  // --rho-inf (recorded), or NaN
+  std::string energy_guard;       // --energy-guard "on" or "off" (recorded), or empty
 };
 
 // The integrator of the command line (--integrator NAME, --rho-inf R) in place of the scene's:

@@ -97,6 +97,7 @@ Simulation::Simulation(const Scene& scene)
   StepStats start;
   measure(start);
   energy_before_ = start.total_energy;
+  energy_scale_ = energies_now().in_motion;
 }
 
 void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>* v,
@@ -137,6 +138,8 @@ StepOutcome Simulation::step() {
   int iterations = 0, retries = 0;
   const double t_next = state_.time + scene_.time.dt;
   balance_ = {};
+  stats_.guarded_steps = 0;
+  energy_now_ = energy_before_;
   StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
   stats_.retries = retries;
   if (outcome.status != StepStatus::ok) return outcome;
@@ -165,13 +168,26 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
   CheckpointWriter before;
   save(before);
   const EnergyBalance balance_before = balance_;
+  const double energy_start = energy_now_;
   auto go_back = [&] {
     CheckpointReader in(before.bytes(), "the state before the failed step");
     restore(in);
     balance_ = balance_before;
+    energy_now_ = energy_start;
   };
   const double t_start = state_.time;
   StepOutcome outcome = advance(dt, t_next, iterations);
+  if (outcome.status == StepStatus::ok && guard_energy(balance_before)) {
+    // The integration would have created energy: the same interval again with implicit Euler.
+    go_back();
+    force_euler_ = true;
+    outcome = advance(dt, t_next, iterations);
+    force_euler_ = false;
+    if (outcome.status == StepStatus::ok) {
+      ++stats_.guarded_steps;
+      guard_energy(balance_before);
+    }
+  }
   if (outcome.status == StepStatus::ok) return outcome;
   go_back();
   if (level == halvings) {
@@ -198,6 +214,7 @@ StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, in
 StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
   dt_ = dt;
   const IntegratorParams& integrator = step_scheme(dt);
+  last_attempt_euler_ = integrator.is_implicit_euler();
   StepOutcome outcome;
   const double kappa_before = potential_.barrier_stiffness();
   const double held_kinetic_before = held_kinetic_energy(model_, state_.v);
@@ -276,7 +293,48 @@ StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
   return outcome;
 }
 
+Simulation::Energies Simulation::energies_now() const {
+  double kinetic = 0.0, gravity = 0.0;
+  for (int32_t i = 0; i < model_.num_vertices; ++i) {
+    const Eigen::Vector3d vi = Eigen::Vector3d::Map(&state_.v[3 * i]);
+    kinetic += 0.5 * model_.mass[i] * vi.squaredNorm();
+    gravity -= model_.mass[i] * model_.gravity.dot(Eigen::Vector3d::Map(&state_.x[3 * i]));
+  }
+  double barrier = 0.0;
+  if (contact_ && potential_.barrier_stiffness() > 0.0)
+    barrier = potential_.barrier_stiffness() * contact_->energy(state_.x.data());
+  const double in_motion = kinetic + elastic_.energy(state_.x.data()) + barrier;
+  return {in_motion + gravity, std::abs(in_motion), gravity};
+}
+
+bool Simulation::guard_energy(const EnergyBalance& balance_before) {
+  const IntegratorParams& scheme = scene_.time.integrator;
+  if (!scene_.time.energy_guard || scheme.is_static || scheme.is_explicit() || scheme.is_implicit_euler()) return false;
+  // The energy this attempt's integration created: the change of the total energy that the
+  // balance's named terms (boundary work, friction, kappa) do not explain.
+  const Energies end = energies_now();
+  const double boundary_work = balance_.boundary_work - balance_before.boundary_work;
+  const double explained = boundary_work - (balance_.friction_dissipated - balance_before.friction_dissipated) +
+                           (balance_.kappa_energy - balance_before.kappa_energy);
+  // Less an allowance for the error of the trapezoidal boundary work, 1e-3 of it (its relative
+  // error is about (h omega)^2 / 12 for a boundary turning at omega: 4e-5 on bar_twist).
+  const double created = end.total - energy_now_ - explained - 1e-3 * std::abs(boundary_work);
+  // Allowed: what the integration has taken out so far (numerical damping, impacts), and a
+  // margin for Newton's tolerance and round-off: 1e-6 of the largest energy in motion seen,
+  // this attempt's end included (a body that starts at rest has none before its first step),
+  // and 1e-10 of the gravity energy, whose size depends only on where the origin is.
+  const double scale = std::max(energy_scale_, end.in_motion);
+  const double tolerance = 1e-6 * scale + 1e-10 * std::abs(end.gravity);
+  if (!last_attempt_euler_ && integrator_created_ + created > tolerance) return true;
+  integrator_created_ += created;
+  energy_now_ = end.total;
+  energy_scale_ = scale;
+  return false;
+}
+
 const IntegratorParams& Simulation::step_scheme(double dt) {
+  static const IntegratorParams kEuler = *integrator_preset("implicit_euler");
+  if (force_euler_) return kEuler;
   const IntegratorParams& scheme = scene_.time.integrator;
   if (!contact_ || !contact_memory_.empty() || scheme.contact_memory_scale(dt) == 0.0) return scheme;
   // No contact force of a step before this one to remember: the first step, or the first after
@@ -285,10 +343,7 @@ const IntegratorParams& Simulation::step_scheme(double dt) {
   // contact weight is its own steady one, takes this step instead and leaves the memory for the
   // next. Without touching contacts the memory is zero.
   contact_->find_candidates(state_.x.data(), nullptr);
-  if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat()) {
-    static const IntegratorParams kEuler = *integrator_preset("implicit_euler");
-    return kEuler;
-  }
+  if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat()) return kEuler;
   contact_memory_.assign(model_.num_dofs(), 0.0);
   return scheme;
 }
@@ -551,6 +606,8 @@ void Simulation::save(CheckpointWriter& out) const {
   out.put_vector(state_.a_bar);
   out.put_vector(contact_memory_);
   out.put(energy_before_);
+  out.put(integrator_created_);
+  out.put(energy_scale_);
   potential_.save(out);
   out.put<uint8_t>(joint_stiffness_set_);
   out.put(joint_stiffening_);
@@ -574,6 +631,10 @@ void Simulation::restore(CheckpointReader& in) {
   if (!std::all_of(contact_memory.begin(), contact_memory.end(), [](double f) { return std::isfinite(f); }))
     in.fail("non-finite contact memory");
   const double energy_before = in.get<double>();
+  const double integrator_created = in.get<double>();
+  const double energy_scale = in.get<double>();
+  if (!std::isfinite(integrator_created) || !(energy_scale >= 0.0 && std::isfinite(energy_scale)))
+    in.fail("non-finite energy guard record");
   if (state.step < 0 || !std::isfinite(state.time) || !std::isfinite(energy_before))
     in.fail("negative step, or non-finite time or energy");
   for (const std::vector<double>* field : {&state.x, &state.v, &state.a, &state.a_bar})
@@ -591,6 +652,8 @@ void Simulation::restore(CheckpointReader& in) {
   state_ = std::move(state);
   contact_memory_ = std::move(contact_memory);
   energy_before_ = energy_before;
+  integrator_created_ = integrator_created;
+  energy_scale_ = energy_scale;
 }
 
 }  // namespace nexdyn

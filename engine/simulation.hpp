@@ -58,6 +58,7 @@ struct StepStats {
   std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
   int retries = 0;  // failed attempts of this step, each retried as two of half the dt
   EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
+  int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
 };
 
 struct StepOutcome {
@@ -108,6 +109,17 @@ class Simulation {
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
   // energy of the motion x_old -> x_new to balance_.
   void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before);
+  // Total energy of state_ (stats.csv's total_energy), its part in motion (|kinetic + elastic +
+  // barrier|) and its gravity part.
+  struct Energies {
+    double total = 0.0, in_motion = 0.0, gravity = 0.0;
+  };
+  Energies energies_now() const;
+  // The energy guard (time.energy_guard): after an attempt that succeeded, true when its
+  // integration would bring the energy it has created since the start above zero (what it took
+  // out before may be spent again), and the attempt must be retaken with implicit Euler;
+  // otherwise the attempt is booked and false. balance_before: balance_ before the attempt.
+  bool guard_energy(const EnergyBalance& balance_before);
   // The scheme of the step: the scene's, or implicit Euler for a step that starts in contact with
   // no contact force of a previous step to remember (IntegratorParams::contact_memory_scale).
   const IntegratorParams& step_scheme(double dt);
@@ -153,6 +165,13 @@ class Simulation {
   std::vector<double> elastic_gradient_old_, elastic_gradient_new_;  // (3n) of the boundary work
   EnergyBalance balance_;        // of the step under way, summed over its successful attempts
   double energy_before_ = 0.0;   // [J] total energy of state_, where the next step's balance starts
+  // The energy guard: the total energy at the start of the attempt under way [J], the energy
+  // the integration has created since the start (negative: taken out), less the allowance for
+  // the boundary work's error [J], the largest energy
+  // in motion seen (the scale of the guard's margin) [J], whether the attempt under way is implicit Euler's,
+  // and whether the next attempt must be.
+  double energy_now_ = 0.0, integrator_created_ = 0.0, energy_scale_ = 0.0;
+  bool last_attempt_euler_ = false, force_euler_ = false;
   double dt_ = 0.0;  // [s] of the attempt under way (the scene's dt, or a part of it)
 };
 

@@ -1,6 +1,6 @@
 // nexdyn: the command-line program (DESIGN.md section 6).
 //   nexdyn run SCENE.json [--out DIR] [--steps N] [--threads K] [--integrator NAME] [--quiet]
-//              [--checkpoint-every K] [--rho-inf R]
+//              [--checkpoint-every K] [--rho-inf R] [--energy-guard on|off]
 //   nexdyn resume DIR [--threads K] [--quiet]
 //   nexdyn check SCENE.json
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
@@ -65,6 +65,10 @@ int main(int argc, char** argv) {
   run->add_option("--integrator", integrator, "Override the scene's integrator preset");
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
   run->add_option("--rho-inf", rho_inf, "Spectral radius at infinity of generalized_alpha (0 to 1)");
+  std::string energy_guard;
+  run->add_option("--energy-guard", energy_guard, "on or off: retake with implicit Euler any step whose "
+                  "integration would create energy (default: the scene's time.energy_guard, on)")
+      ->check(CLI::IsMember({"on", "off"}));
   run->add_flag("--quiet", quiet, "No progress bar or summary");
   int64_t checkpoint_every = -1;
   run->add_option("--checkpoint-every", checkpoint_every,
@@ -122,6 +126,7 @@ int main(int argc, char** argv) {
     } else {
       Scene scene = load_scene(scene_path);
       override_integrator(scene, integrator, rho_inf);
+      if (!energy_guard.empty()) scene.time.energy_guard = energy_guard == "on";
       RunOptions options;
       options.out_dir = out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(out_dir);
       options.steps = steps;
@@ -129,6 +134,7 @@ int main(int argc, char** argv) {
       options.checkpoint_every = checkpoint_every;
       options.integrator = integrator;
       options.rho_inf = rho_inf;
+      options.energy_guard = energy_guard;
       out = options.out_dir;
       if (!quiet) print_summary(scene);
       summary = run_scene(scene, options);

@@ -28,7 +28,8 @@
 
 namespace nexdyn {
 
-inline constexpr uint32_t kCheckpointFormat = 2;  // 2: generalized-alpha history and the energy balance
+// 2: generalized-alpha history and the energy balance; 3: the energy guard's record
+inline constexpr uint32_t kCheckpointFormat = 3;
 
 // A checkpoint that cannot be used: unreadable, truncated, corrupt, or from another scene.
 struct CheckpointError : std::runtime_error {

@@ -190,7 +190,8 @@ bool boolean(const json& value, const Where& where) {
 
 void read_time(const json& j, const Where& w, TimeSettings& time) {
   check_keys(j, w, {"dt", "steps", "integrator", "rho_inf", "alpha", "beta", "gamma", "alpha_m", "alpha_f",
-                    "initial_acceleration"});
+                    "initial_acceleration", "energy_guard"});
+  if (j.contains("energy_guard")) time.energy_guard = boolean(j["energy_guard"], w["energy_guard"]);
   if (j.contains("dt")) time.dt = positive(j["dt"], w["dt"]);
   if (j.contains("steps")) time.steps = integer(j["steps"], w["steps"], 1);
   if (j.contains("integrator")) {

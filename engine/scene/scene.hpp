@@ -28,6 +28,8 @@ struct TimeSettings {
   int64_t steps = 100;
   IntegratorParams integrator = default_integrator();  // generalized_alpha, rho_inf 0.5
   bool consistent_initial_acceleration = true;  // a0 = M^-1 f(x0); false: a0 = 0
+  // Retake with implicit Euler any step whose integration would create energy (docs/scenes.md).
+  bool energy_guard = true;
 };
 
 inline constexpr int kMaxSubstepHalvings = 16;

@@ -71,6 +71,7 @@ TEST_CASE("scene errors name the file and the key and the value") {
       {scene_with(R"("time": { "alpha_m": 0.3, "alpha_f": 0.2 })"), {"time.alpha_m", "alpha_f", "0.3"}},
       {scene_with(R"("time": { "alpha_f": 0.6 })"), {"time.alpha_f", "0.6"}},
       {scene_with(R"("time": { "alpha_f": 0.1, "beta": 0 })"), {"time.beta", "implicit"}},
+      {scene_with(R"("time": { "energy_guard": "yes" })"), {"time.energy_guard", "true or false", "yes"}},
       {"{ not json", {"bad.json", "JSON"}},
   };
   for (const Case& c : cases) {
