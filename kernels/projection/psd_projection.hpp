@@ -138,4 +138,12 @@ inline Eigen::Matrix3d psd_factor3(const Eigen::Matrix3d& A) {
   return to_eigen(psd_factor3(to_mat3(A)));
 }
 
+// The sizes the contact stencils use are compiled once, in psd_projection.cpp: a fixed-size
+// SelfAdjointEigenSolver is slow to compile (several minutes under the sanitizers per file that
+// instantiates it), and a call costs nothing next to a 9x9 or 12x12 eigendecomposition.
+extern template int project_psd<4>(Eigen::Matrix<double, 4, 4>&, double);
+extern template int project_psd<5>(Eigen::Matrix<double, 5, 5>&, double);
+extern template int project_psd<9>(Eigen::Matrix<double, 9, 9>&, double);
+extern template int project_psd<12>(Eigen::Matrix<double, 12, 12>&, double);
+
 }  // namespace nexdyn
