@@ -36,9 +36,10 @@ case "${1:-build}" in
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
       ctest --test-dir "$build_dir-asan" --output-on-failure -j "$jobs"
     # ThreadSanitizer over the tests that run the parallel kernels on 1 and 2 threads and compare
-    # (engine/parallel.hpp runs its chunks on std::threads in this build; see there why).
+    # (engine/parallel.hpp runs its chunks on std::threads in this build; see there why); only the
+    # test files that hold them are built (tests/CMakeLists.txt, NEXDYN_TESTS_MATCHING).
     cmake -S . -B "$build_dir-tsan" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-          -DNEXDYN_SANITIZE=thread -DNEXDYN_BENCH=OFF >/dev/null
+          -DNEXDYN_SANITIZE=thread -DNEXDYN_BENCH=OFF -DNEXDYN_TESTS_MATCHING="$tsan_tests" >/dev/null
     cmake --build "$build_dir-tsan" -j "$jobs"
     TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
       ctest --test-dir "$build_dir-tsan" --output-on-failure -j "$jobs" -R "$tsan_tests" ;;
