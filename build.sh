@@ -5,9 +5,9 @@
 #   ./build.sh demo     build, then run the default scene (scenes/cantilever.json)
 #   ./build.sh test     build, then run the whole test suite with CTest
 #   ./build.sh bench    build, then run the benchmarks (slow; see docs/performance.md)
-#   ./build.sh sanitize build, then the test suite under AddressSanitizer + UndefinedBehavior-
-#                       Sanitizer (build-asan/) and the parallel-kernel tests under
-#                       ThreadSanitizer (build-tsan/)
+#   ./build.sh sanitize build, then the test suite (but its four longest runs) under
+#                       AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/) and the
+#                       parallel-kernel tests under ThreadSanitizer (build-tsan/)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -17,6 +17,10 @@ install_missing "${nexdyn_packages[@]}"
 build_dir=${NEXDYN_BUILD_DIR:-build}
 # The tests ThreadSanitizer runs: those that run the parallel kernels on 1 and 2 threads.
 tsan_tests="threads|thread count"
+# The four longest end-to-end runs (about half of the suite's time, 5 to 6 times slower under
+# AddressSanitizer) are left to the plain suite so that CI stays within its hour; the code they
+# run is run under the sanitizers by the shorter scene, contact and friction tests.
+asan_skip="scene roller|kill and resume: the 100-body pile|cantilever: newmark and the default|scene mat40x40_twist"
 jobs=$(nproc)
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build_dir" -j "$jobs"
@@ -34,7 +38,7 @@ case "${1:-build}" in
     cmake --build "$build_dir-asan" -j "$jobs"
     ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-      ctest --test-dir "$build_dir-asan" --output-on-failure -j "$jobs"
+      ctest --test-dir "$build_dir-asan" --output-on-failure -j "$jobs" -E "$asan_skip"
     # ThreadSanitizer over the tests that run the parallel kernels on 1 and 2 threads and compare
     # (engine/parallel.hpp runs its chunks on std::threads in this build; see there why); only the
     # test files that hold them are built (tests/CMakeLists.txt, NEXDYN_TESTS_MATCHING).
