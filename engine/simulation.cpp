@@ -293,13 +293,20 @@ StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
   return outcome;
 }
 
-Simulation::Energies Simulation::energies_now() const {
-  double kinetic = 0.0, gravity = 0.0;
+Simulation::MotionSums Simulation::motion_sums() const {
+  MotionSums sums;
   for (int32_t i = 0; i < model_.num_vertices; ++i) {
+    const double m = model_.mass[i];
     const Eigen::Vector3d vi = Eigen::Vector3d::Map(&state_.v[3 * i]);
-    kinetic += 0.5 * model_.mass[i] * vi.squaredNorm();
-    gravity -= model_.mass[i] * model_.gravity.dot(Eigen::Vector3d::Map(&state_.x[3 * i]));
+    sums.kinetic += 0.5 * m * vi.squaredNorm();
+    sums.gravity -= m * model_.gravity.dot(Eigen::Vector3d::Map(&state_.x[3 * i]));
+    sums.momentum += m * vi;
   }
+  return sums;
+}
+
+Simulation::Energies Simulation::energies_now() const {
+  const auto [kinetic, gravity, momentum] = motion_sums();
   double barrier = 0.0;
   if (contact_ && potential_.barrier_stiffness() > 0.0)
     barrier = potential_.barrier_stiffness() * contact_->energy(state_.x.data());
@@ -570,17 +577,7 @@ StepOutcome Simulation::start_point(double t_next) {
 
 void Simulation::measure(StepStats& stats) const {
   const std::vector<double>& x = state_.x;
-  const std::vector<double>& v = state_.v;
-  const Eigen::Vector3d& g = model_.gravity;
-  double kinetic = 0.0, gravity = 0.0;
-  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
-  for (int32_t i = 0; i < model_.num_vertices; ++i) {
-    const double m = model_.mass[i];
-    const Eigen::Vector3d vi = Eigen::Vector3d::Map(&v[3 * i]);
-    kinetic += 0.5 * m * vi.squaredNorm();
-    gravity -= m * g.dot(Eigen::Vector3d::Map(&x[3 * i]));
-    momentum += m * vi;
-  }
+  const auto [kinetic, gravity, momentum] = motion_sums();
   stats.kinetic_energy = kinetic;
   stats.elastic_energy = elastic_.energy(x.data());
   stats.gravity_energy = gravity;

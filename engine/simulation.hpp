@@ -109,6 +109,12 @@ class Simulation {
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
   // energy of the motion x_old -> x_new to balance_.
   void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before);
+  // Kinetic and gravity energy and momentum of state_, summed over the vertices in order.
+  struct MotionSums {
+    double kinetic = 0.0, gravity = 0.0;
+    Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+  };
+  MotionSums motion_sums() const;
   // Total energy of state_ (stats.csv's total_energy), its part in motion (|kinetic + elastic +
   // barrier|) and its gravity part.
   struct Energies {
