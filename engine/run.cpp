@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <csignal>
+#include <cstdlib>
 #include <iterator>
 #include <memory>
 #include <cmath>
@@ -338,9 +339,55 @@ class StopSignals {
   void (*previous_term_)(int) = SIG_DFL;
 };
 
+// The test hook behind kill-and-resume and signal tests (run.hpp, kTestSignalVariable): the
+// process sends itself a signal at a chosen place of a chosen step, so that a test knows exactly
+// what the run had written when it was stopped, however fast or slow the machine is.
+struct SignalHook {
+  enum class Place { begin, row, checkpoint };
+  int signal = 0;  // 0: no hook
+  int64_t step = 0;
+  Place place = Place::begin;
+
+  void at(int64_t now, Place here) const {
+    if (signal != 0 && now == step && here == place) std::raise(signal);
+  }
+};
+
+SignalHook signal_hook_from_environment() {
+  SignalHook hook;
+  const char* text = std::getenv(kTestSignalVariable);
+  if (!text || !*text) return hook;
+  const std::string value = text;
+  auto fail = [&] {
+    throw std::runtime_error(std::string(kTestSignalVariable) + ": expected SIGNAL@STEP[:PLACE] with SIGNAL one of "
+                             "KILL, TERM, INT, STEP >= 1 and PLACE one of begin, row, checkpoint; got \"" + value + "\"");
+  };
+  const size_t at = value.find('@');
+  if (at == std::string::npos) fail();
+  const std::string name = value.substr(0, at);
+  if (name == "KILL") hook.signal = SIGKILL;
+  else if (name == "TERM") hook.signal = SIGTERM;
+  else if (name == "INT") hook.signal = SIGINT;
+  else fail();
+  const size_t colon = value.find(':', at);
+  const std::string step = value.substr(at + 1, colon == std::string::npos ? std::string::npos : colon - at - 1);
+  if (step.empty() || step.find_first_not_of("0123456789") != std::string::npos || step.size() > 15) fail();
+  hook.step = std::stoll(step);
+  if (hook.step < 1) fail();
+  const std::string place = colon == std::string::npos ? "begin" : value.substr(colon + 1);
+  if (place == "begin") hook.place = SignalHook::Place::begin;
+  else if (place == "row") hook.place = SignalHook::Place::row;
+  else if (place == "checkpoint") hook.place = SignalHook::Place::checkpoint;
+  else fail();
+  std::fprintf(stderr, "nexdyn: %s=%s: this run will send itself SIG%s at step %lld (%s)\n", kTestSignalVariable,
+               value.c_str(), name.c_str(), static_cast<long long>(hook.step), place.c_str());
+  return hook;
+}
+
 // Writes a checkpoint of `snapshot` (a Simulation saved after record.steps_done) and keeps the
 // newest two; returns its path.
-fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const std::string& snapshot) {
+fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const std::string& snapshot,
+                          const SignalHook& hook) {
   CheckpointWriter payload;
   put_record(payload, record);
   std::string bytes = payload.bytes();
@@ -351,6 +398,7 @@ fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const st
   fs::create_directories(checkpoint_folder(out), ec);
   const fs::path path = checkpoint_folder(out) / name;
   write_checkpoint_file(path, bytes);
+  hook.at(record.steps_done, SignalHook::Place::checkpoint);
   const std::vector<fs::path> all = list_checkpoints(out);
   for (size_t k = 2; k < all.size(); ++k) fs::remove(all[k], ec);
   return path;
@@ -360,7 +408,7 @@ fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const st
 // checkpoints into `out` (and frame 0 first on a fresh run; a resumed one has it in its record).
 // `stats` and `timings` are open at the end of record.steps_done's rows.
 RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simulation, RunRecord record,
-                     RowFile& stats, RowFile& timings, bool show_progress, bool fresh) {
+                     RowFile& stats, RowFile& timings, bool show_progress, bool fresh, const SignalHook& hook) {
   const auto start = std::chrono::steady_clock::now();
   const fs::path frames_dir = out / "frames";
   auto write_frame = [&](int64_t frame) {
@@ -388,10 +436,11 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
     simulation.save(state);
     record.stats_bytes = stats.bytes();
     record.timings_bytes = timings.bytes();
-    summary.checkpoint = write_checkpoint(out, record, state.bytes()).string();
+    summary.checkpoint = write_checkpoint(out, record, state.bytes(), hook).string();
   };
   StepProfile before = simulation.profile();
   for (int64_t step = record.steps_done + 1; step <= record.total_steps; ++step) {
+    hook.at(step, SignalHook::Place::begin);
     const StepOutcome outcome = simulation.step();
     if (outcome.status != StepStatus::ok) {
       summary.ok = false;
@@ -407,6 +456,7 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
     summary.newton_iterations += simulation.last_stats().newton_iterations;
     const auto output_start = std::chrono::steady_clock::now();
     stats.write(stats_row(simulation.last_stats()));
+    hook.at(step, SignalHook::Place::row);
     if (step % scene.output.every == 0) write_frame(step);
     const double output_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - output_start).count();
     summary.output_seconds += output_seconds;
@@ -440,6 +490,7 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simula
 }  // namespace
 
 RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  const SignalHook hook = signal_hook_from_environment();
   const fs::path out = options.out_dir;
   const fs::path frames_dir = out / "frames";
   std::error_code ec;
@@ -462,10 +513,11 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   RowFile stats(out, "stats", stats_header(scene));
   RowFile timings(out, "timings", timings_header());
   Simulation simulation(scene);
-  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true);
+  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true, hook);
 }
 
 RunSummary resume_run(const fs::path& out, bool progress) {
+  const SignalHook hook = signal_hook_from_environment();
   std::error_code ec;
   if (!fs::exists(out / "stats.partial.csv", ec)) {
     if (fs::exists(out / "stats.csv", ec))
@@ -514,7 +566,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       continue;
     }
     // Frames past the checkpoint are written again; the ones before are listed in its record.
-    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress, false);
+    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress, false, hook);
   }
   throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");
 }

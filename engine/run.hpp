@@ -27,6 +27,14 @@
 
 namespace nexdyn {
 
+// A test hook: with NEXDYN_TEST_SIGNAL=SIGNAL@STEP[:PLACE] in the environment (SIGNAL one of KILL,
+// TERM, INT; PLACE one of begin (the default), row, checkpoint) a run sends itself that signal at
+// step STEP: as the step begins, just after its stats row is written (before its frame and
+// timings row), or just after its checkpoint file is in place (before older ones are removed).
+// Signal and kill-and-resume tests use it to stop a run at a known point on any machine; the run
+// says on stderr that the hook is set. A malformed value is an error naming the variable.
+inline constexpr const char* kTestSignalVariable = "NEXDYN_TEST_SIGNAL";
+
 // The exact header of stats.csv (DESIGN.md section 6); later features append columns after it.
 inline constexpr const char* kStatsHeader =
     "step,time,kinetic_energy,elastic_energy,gravity_energy,barrier_energy,total_energy,"

@@ -1,6 +1,7 @@
-// Kill and resume, end to end: `nexdyn run` killed with SIGKILL at random moments and continued
-// with `nexdyn resume` writes the same stats.csv (all but wall_seconds), frames and scene.pvd as
-// a run never stopped; SIGTERM stops a run with a checkpoint; a damaged newest checkpoint is
+// Kill and resume, end to end: `nexdyn run` killed with SIGKILL at chosen steps (the run sends
+// itself the signal through the NEXDYN_TEST_SIGNAL hook, engine/run.hpp, so every kill lands
+// where the test says on any machine) and continued with `nexdyn resume` writes the same
+// stats.csv (all but wall_seconds), frames and scene.pvd as a run never stopped; SIGTERM stops a run with a checkpoint; a damaged newest checkpoint is
 // skipped for the one before; resume refuses what it cannot continue.
 #include "tests/engine/test_support.hpp"
 
@@ -12,7 +13,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
@@ -21,7 +21,6 @@
 #include <random>
 #include <regex>
 #include <string>
-#include <thread>
 #include <vector>
 
 extern char** environ;
@@ -31,29 +30,50 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// nexdyn with these arguments as a child process, its output thrown away.
-pid_t spawn_cli(const std::vector<std::string>& args) {
+// nexdyn with these arguments as a child process, its output thrown away; with a `signal_at`
+// (SIGNAL@STEP[:PLACE], engine/run.hpp) the run sends itself that signal there.
+pid_t spawn_cli(const std::vector<std::string>& args, const std::string& signal_at = "") {
   std::vector<std::string> all = {NEXDYN_CLI_PATH};
   all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : all) argv.push_back(a.data());
   argv.push_back(nullptr);
+  // The environment of this process without any hook of its own, plus the one asked for.
+  const std::string hook_prefix = std::string(kTestSignalVariable) + "=";
+  std::string hook = hook_prefix + signal_at;
+  std::vector<char*> env;
+  for (char** e = environ; *e; ++e)
+    if (std::string(*e).rfind(hook_prefix, 0) != 0) env.push_back(*e);
+  if (!signal_at.empty()) env.push_back(hook.data());
+  env.push_back(nullptr);
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   pid_t pid = -1;
-  const int error = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  const int error = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), env.data());
   posix_spawn_file_actions_destroy(&actions);
   REQUIRE(error == 0);
   return pid;
 }
 
-// Waits for the child; its exit code, or 128 + the signal that ended it.
-int wait_child(pid_t pid) {
+// How a child process ended: by exit (with its code) or killed by a signal; an exit with code
+// 143 is not a death by SIGTERM.
+struct ChildEnd {
+  bool killed = false;  // ended by a signal
+  int value = 0;        // the exit code, or the signal
+  bool exited(int code) const { return !killed && value == code; }
+  bool killed_by(int signal) const { return killed && value == signal; }
+};
+doctest::String toString(const ChildEnd& e) {
+  return (std::string(e.killed ? "killed by signal " : "exit code ") + std::to_string(e.value)).c_str();
+}
+
+ChildEnd wait_child(pid_t pid) {
   int status = 0;
   REQUIRE(waitpid(pid, &status, 0) == pid);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  REQUIRE((WIFEXITED(status) || WIFSIGNALED(status)));
+  return WIFEXITED(status) ? ChildEnd{false, WEXITSTATUS(status)} : ChildEnd{true, WTERMSIG(status)};
 }
 
 std::string read_bytes(const fs::path& path) {
@@ -88,19 +108,60 @@ void check_same_outputs(const fs::path& expected, const fs::path& resumed) {
   }
 }
 
-// True when `out` has no checkpoint to resume from.
-bool no_checkpoint(const fs::path& out) {
+// The checkpoints in `out`, by step, oldest first.
+std::vector<int64_t> checkpoint_steps(const fs::path& out) {
+  std::vector<int64_t> steps;
   std::error_code ec;
-  if (!fs::is_directory(out / "checkpoints", ec)) return true;
-  for (const auto& entry : fs::directory_iterator(out / "checkpoints", ec))
-    if (entry.path().extension() == ".ckpt") return false;
-  return true;
+  if (!fs::is_directory(out / "checkpoints", ec)) return steps;
+  for (const auto& entry : fs::directory_iterator(out / "checkpoints", ec)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.path().extension() == ".ckpt" && name.rfind("checkpoint_", 0) == 0)
+      steps.push_back(std::stoll(name.substr(11, 9)));
+  }
+  std::sort(steps.begin(), steps.end());
+  return steps;
 }
 
-// Runs `args` into `out` once without a stop, timing it, then again into `killed_out`, killed with
-// SIGKILL at `kills` random moments and resumed each time (started afresh when the kill came
-// before the first checkpoint), and compares the two.
-void check_kill_and_resume(const std::vector<std::string>& args, int kills, unsigned seed) {
+// Data rows (all but the header) of a stats or timings file.
+int64_t data_rows(const fs::path& file) { return static_cast<int64_t>(test::read_lines(file).size()) - 1; }
+
+// Where a run is stopped: at `step`, as it begins, after its stats row, or after its checkpoint.
+struct Stop {
+  int64_t step = 0;
+  std::string place;
+  std::string hook() const { return "KILL@" + std::to_string(step) + ":" + place; }
+};
+
+// `count` stops at increasing steps in [1, total - 1] drawn with `seed`, at varied places (a
+// "checkpoint" stop moved to the next step that writes one). Spread so that the later ones come
+// after the first checkpoint: some runs restart from nothing, the others resume.
+std::vector<Stop> stop_plan(int64_t total, int64_t every, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  const char* places[] = {"begin", "row", "checkpoint"};
+  std::vector<Stop> plan;
+  int64_t previous = 0;
+  for (int k = 0; k < count; ++k) {
+    const int64_t last = std::max(previous + 1, previous + (total - 1 - previous) / (count - k));
+    Stop stop{std::uniform_int_distribution<int64_t>(previous + 1, last)(rng), places[(seed + k) % 3]};
+    if (stop.place == "checkpoint") {
+      const int64_t at = (stop.step + every - 1) / every * every;
+      if (at <= total - 1) stop.step = at;
+      else stop.place = "row";
+    }
+    plan.push_back(stop);
+    previous = stop.step;
+  }
+  return plan;
+}
+
+// Runs `args` (whose run has `total` steps and a checkpoint every `every`) into `full` once
+// without a stop, then again into `killed`, stopped with SIGKILL at the steps and places of a
+// plan and resumed after each (run afresh when no checkpoint was written yet). After each kill the
+// folder must hold exactly what the run had written by then: the stats and timings rows of the
+// steps before (and of the stopped one, past its row), and the newest checkpoints up to there. The
+// finished run must write what the unstopped one did.
+void check_kill_and_resume(const std::vector<std::string>& args, int64_t total, int64_t every, int kills,
+                           unsigned seed) {
   const fs::path dir = test::temp_dir("kill_resume");
   const fs::path full = dir / "full", killed = dir / "killed";
   auto with_out = [&](const fs::path& out) {
@@ -108,45 +169,46 @@ void check_kill_and_resume(const std::vector<std::string>& args, int kills, unsi
     a.insert(a.end(), {"--quiet", "--out", out.string()});
     return a;
   };
-  const auto start = std::chrono::steady_clock::now();
-  REQUIRE(wait_child(spawn_cli(with_out(full))) == 0);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const std::vector<std::string> resume = {"resume", killed.string(), "--quiet"};
+  REQUIRE(wait_child(spawn_cli(with_out(full))).exited(0));
+  REQUIRE(data_rows(full / "stats.csv") == total);
 
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> moment(0.05 * seconds, 0.9 * seconds);
-  bool started = false;
   int resumed = 0;
-  for (int k = 0; k < kills; ++k) {
-    const bool can_resume = started && !no_checkpoint(killed);
-    const pid_t pid = spawn_cli(can_resume ? std::vector<std::string>{"resume", killed.string(), "--quiet"}
-                                           : with_out(killed));
+  for (const Stop& stop : stop_plan(total, every, kills, seed)) {
+    CAPTURE(stop.hook());
+    const bool can_resume = !checkpoint_steps(killed).empty();
     resumed += can_resume;
-    started = true;
-    std::this_thread::sleep_for(std::chrono::duration<double>(moment(rng)));
-    kill(pid, SIGKILL);
-    if (wait_child(pid) == 0) break;  // it finished before the kill
+    CHECK(wait_child(spawn_cli(can_resume ? resume : with_out(killed), stop.hook())).killed_by(SIGKILL));
+    const int64_t rows = stop.place == "begin" ? stop.step - 1 : stop.step;
+    CHECK(data_rows(killed / "stats.partial.csv") == rows);
+    CHECK(data_rows(killed / "timings.partial.csv") == rows - (stop.place == "row"));
+    // Written: the checkpoints of every `every` steps up to the stop, of which the newest two are
+    // kept; a stop after a checkpoint's file comes before the oldest of three is removed.
+    const int64_t newest = stop.place == "checkpoint" ? stop.step : (stop.step - 1) / every * every;
+    std::vector<int64_t> expected;
+    for (int64_t c = newest; c >= every && expected.size() < (stop.place == "checkpoint" ? 3u : 2u); c -= every)
+      expected.insert(expected.begin(), c);
+    CHECK(checkpoint_steps(killed) == expected);
   }
-  if (!fs::exists(killed / "stats.csv")) {
-    const bool can_resume = !no_checkpoint(killed);
-    resumed += can_resume;
-    REQUIRE(wait_child(spawn_cli(can_resume ? std::vector<std::string>{"resume", killed.string(), "--quiet"}
-                                            : with_out(killed))) == 0);
-  }
+  const bool can_resume = !checkpoint_steps(killed).empty();
+  resumed += can_resume;
+  REQUIRE(wait_child(spawn_cli(can_resume ? resume : with_out(killed))).exited(0));
   MESSAGE("resumed ", resumed, " times");
-  CHECK(resumed > 0);
+  CHECK(resumed >= kills - 1);
   check_same_outputs(full, killed);
 }
 
 }  // namespace
 
-TEST_CASE("kill and resume: the cube stack killed at random moments writes what an unstopped run does") {
+TEST_CASE("kill and resume: the cube stack killed at chosen steps writes what an unstopped run does") {
   // The rows a killed run wrote past its last checkpoint must be cut off on resume.
-  check_kill_and_resume({"run", test::scene_path("cube_stack.json").string(), "--checkpoint-every", "40"}, 4, 11);
+  check_kill_and_resume({"run", test::scene_path("cube_stack.json").string(), "--checkpoint-every", "40"}, 200, 40,
+                        4, 11);
 }
 
-TEST_CASE("kill and resume: the 100-body pile killed at random moments writes what an unstopped run does") {
+TEST_CASE("kill and resume: the 100-body pile killed at chosen steps writes what an unstopped run does") {
   check_kill_and_resume({"run", test::scene_path("stress/pile_100.json").string(), "--steps", "30",
-                         "--checkpoint-every", "4", "--threads", "2"}, 3, 7);
+                         "--checkpoint-every", "4", "--threads", "2"}, 30, 4, 3, 7);
 }
 
 TEST_CASE("SIGTERM stops a run with a checkpoint, and a damaged newest checkpoint is skipped on resume") {
@@ -158,45 +220,49 @@ TEST_CASE("SIGTERM stops a run with a checkpoint, and a damaged newest checkpoin
     a.push_back(out.string());
     return a;
   };
-  REQUIRE(wait_child(spawn_cli(run_into(dir / "full"))) == 0);
+  REQUIRE(wait_child(spawn_cli(run_into(dir / "full"))).exited(0));
 
-  // SIGTERM once the run has passed its first periodic checkpoint: it ends the step under way,
-  // writes a checkpoint of it and exits with 128 + 15.
+  // SIGTERM as step 25 begins: the run ends that step, writes a checkpoint of it and exits with
+  // code 128 + 15 (it is not killed by the signal).
   const fs::path out = dir / "stopped";
-  const pid_t pid = spawn_cli(run_into(out));
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (!fs::exists(out / "checkpoints" / "checkpoint_000000010.ckpt") && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  kill(pid, SIGTERM);
-  const int code = wait_child(pid);
-  if (code == 0) {
-    MESSAGE("the run finished before SIGTERM arrived; nothing to check");
-    return;
-  }
-  CHECK(code == 128 + SIGTERM);
-  const auto rows = test::read_lines(out / "stats.partial.csv");
-  REQUIRE(rows.size() >= 11);
-  const int64_t stopped_after = static_cast<int64_t>(rows.size()) - 1;
-  char name[64];
-  std::snprintf(name, sizeof name, "checkpoint_%09lld.ckpt", static_cast<long long>(stopped_after));
-  CHECK(fs::exists(out / "checkpoints" / name));
+  CHECK(wait_child(spawn_cli(run_into(out), "TERM@25")).exited(128 + SIGTERM));
+  CHECK(data_rows(out / "stats.partial.csv") == 25);
+  CHECK(checkpoint_steps(out) == std::vector<int64_t>{20, 25});
 
   // Damage the newest checkpoint: resume names it, falls back to the one before, and still ends
   // where the unstopped run did.
-  std::vector<fs::path> found;
-  for (const auto& entry : fs::directory_iterator(out / "checkpoints")) found.push_back(entry.path());
-  std::sort(found.begin(), found.end());
-  REQUIRE(found.size() == 2);
+  const fs::path newest = out / "checkpoints" / "checkpoint_000000025.ckpt";
   {
-    std::fstream f(found.back(), std::ios::in | std::ios::out | std::ios::binary);
+    std::fstream f(newest, std::ios::in | std::ios::out | std::ios::binary);
     f.seekp(40);
     f.put('\x5a');
   }
   const auto r = test::run_cli("resume " + out.string() + " --quiet");
   CHECK(r.exit_code == 0);
-  CHECK(r.output.find("skipping checkpoint " + found.back().string()) != std::string::npos);
+  CHECK(r.output.find("skipping checkpoint " + newest.string()) != std::string::npos);
   CHECK(r.output.find("checksum mismatch") != std::string::npos);
   check_same_outputs(dir / "full", out);
+}
+
+TEST_CASE("SIGINT after a step's stats row stops the run at that step, also without periodic checkpoints") {
+  const fs::path dir = test::temp_dir("sigint");
+  const std::string scene = test::scene_path("cube_stack.json").string();
+  auto run_into = [&](const fs::path& out) {
+    return std::vector<std::string>{"run", scene, "--steps", "12", "--checkpoint-every", "0", "--quiet", "--out",
+                                    out.string()};
+  };
+  REQUIRE(wait_child(spawn_cli(run_into(dir / "full"))).exited(0));
+  const fs::path out = dir / "stopped";
+  CHECK(wait_child(spawn_cli(run_into(out), "INT@5:row")).exited(128 + SIGINT));
+  CHECK(data_rows(out / "stats.partial.csv") == 5);
+  CHECK(checkpoint_steps(out) == std::vector<int64_t>{5});
+  REQUIRE(wait_child(spawn_cli({"resume", out.string(), "--quiet"})).exited(0));
+  check_same_outputs(dir / "full", out);
+
+  // A malformed hook is refused with the variable named, before any step.
+  const fs::path bad = dir / "bad";
+  CHECK(wait_child(spawn_cli(run_into(bad), "KILL@5:middle")).exited(1));
+  CHECK_FALSE(fs::exists(bad / "stats.partial.csv"));
 }
 
 TEST_CASE("resume refuses a finished run, a folder without a run and a changed scene file, and repeats a failed step") {
