@@ -305,6 +305,14 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
         for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] = 0.0;
     }
+    NewtonIterate* record = nullptr;
+    if (history_) {
+      record = &history_->emplace_back();
+      record->solved_islands = static_cast<int32_t>(active_.size());
+      record->increment = result.increment;
+      for (int32_t i : active_) record->moving_islands += island_moves_[i];
+      if (history_points_ && !any_moving) record->x = x;
+    }
     if (!any_moving) return result;
 
     // Groups: the moving islands, joined where a pair of the CCD sweep links two of them (they
@@ -359,6 +367,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
         result.message = "continuous collision detection allows no motion along the Newton direction";
         return result;
       }
+    if (record) record->ccd_cap = group_alpha_;
     group_slope_.assign(num_groups, 0.0);
     for (int64_t i = 0; i < n; ++i) {
       const int32_t g = group_of_vertex_[i / 3];
@@ -406,6 +415,13 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       }
     }
     x.swap(trial_);
+    if (record) {
+      record->slope = group_slope_;
+      record->start_energy = group_start_;
+      record->accepted_energy = group_trial_;
+      record->step_length = group_alpha_;
+      if (history_points_) record->x = x;
+    }
     if (potential_.end_iteration(x.data())) unfreeze_contacts();
   }
   result.status = StepStatus::max_iterations;

@@ -51,6 +51,19 @@ struct NewtonResult {
   std::string message;       // why it failed; empty when ok
 };
 
+// One Newton iteration as the solver saw it (NewtonSolver::set_history): what was solved, and per
+// group of moving islands (numbered as the line search numbers them) the CCD cap on the step
+// length, the slope g.p along the capped direction, the group's energy at the start and at the
+// accepted point, and the accepted fraction of the capped step. The last iteration of a converged
+// solve has no groups: every island was below the tolerance.
+struct NewtonIterate {
+  int32_t solved_islands = 0;  // factorised and solved this iteration
+  int32_t moving_islands = 0;  // of those, not converged: they moved
+  double increment = 0.0;      // largest max|p| / dt of the solved islands [m/s]
+  std::vector<double> ccd_cap, slope, start_energy, accepted_energy, step_length;  // (groups)
+  std::vector<double> x;       // the accepted point (3n), when asked for
+};
+
 class NewtonSolver {
  public:
   NewtonSolver(const Model& model, IncrementalPotential& potential);
@@ -71,6 +84,13 @@ class NewtonSolver {
   // (the islands holding a vertex of these stencils, num x 4 vertex ids, -1 = none).
   void thaw(const std::vector<int32_t>& stencils);
   void keep_converged_next_solve() { keep_converged_ = true; }
+
+  // Appends every iteration of the coming solves to `history` (null: stop), with the accepted
+  // points when `with_points`; for tests and for diagnosing a step that fails.
+  void set_history(std::vector<NewtonIterate>* history, bool with_points = false) {
+    history_ = history;
+    history_points_ = with_points;
+  }
 
   // The largest total memory of the cached islands' factors seen so far [bytes].
   double peak_factor_bytes() const { return peak_factor_bytes_; }
@@ -95,6 +115,8 @@ class NewtonSolver {
   const Model& model_;
   IncrementalPotential& potential_;
   StepProfile* profile_ = nullptr;
+  std::vector<NewtonIterate>* history_ = nullptr;
+  bool history_points_ = false;
   int64_t analyzed_version_ = -1;
   std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
   std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
