@@ -122,6 +122,7 @@ CcdQueryStats run_ccd_queries(const CcdQuerySet& queries) {
     stats.false_negatives += (queries.truth[i] && !reported[i]);
     stats.false_positives += (!queries.truth[i] && reported[i]);
   }
+  stats.reported = std::move(reported);
   return stats;
 }
 

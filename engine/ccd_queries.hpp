@@ -40,6 +40,7 @@ struct CcdQueryStats {
   int64_t false_negatives = 0;  // truth 1, not reported
   int64_t false_positives = 0;  // truth 0, reported
   double seconds = 0.0;         // wall time of the CCD calls only (not parsing)
+  std::vector<uint8_t> reported;  // (queries) the verdict of each, 1 = reported colliding
 };
 
 // Parses a query file. Throws std::runtime_error naming the file and line on any malformed input
