@@ -20,8 +20,9 @@
 // distance is <= the gap (a possible contact; false positives allowed, false negatives never);
 // then toi <= the first contact time and the distance is > 0 on [0, toi) (and at toi unless
 // toi = 0 because the primitives already touch). Returns false only if the primitives certainly
-// stay apart on [0, tmax]. After kCcdMaxIterations advancement steps (grazing motions) the
-// current, still safe, time is returned as a collision. Pure math: no allocation, threads, I/O or
+// stay apart on [0, tmax]. After kCcdMaxIterations advancement steps (grazing motions), or once
+// a step no longer changes t in double precision, the current, still safe, time is returned as a
+// collision. Pure math: no allocation, threads, I/O or
 // exceptions.
 #pragma once
 
