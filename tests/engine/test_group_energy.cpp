@@ -2,7 +2,8 @@
 // IncrementalPotential), which the island solver's line search tests group by group
 // (engine/solver/newton.cpp): with every vertex in group 0 they add up to energy(); with groups
 // along bodies, each group's total is the energy of the terms touching its vertices, summed
-// element by element from the kernels; terms of vertices in group -1 contribute nothing.
+// element by element from the kernels (friction pair by pair from its definition, with no code of
+// FrictionPotential); terms of vertices in group -1 contribute nothing.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/friction_potential.hpp"
 #include "engine/elastic_assembly.hpp"
@@ -17,6 +18,7 @@
 #include <doctest/doctest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -121,6 +123,98 @@ Reference barrier_reference(const Model& m, const ContactCandidates& c, const do
   return ref;
 }
 
+// The closest point of triangle (a, b, c) to p as weights of its corners: the projection onto the
+// plane when it falls inside, else the closest point of the nearest edge.
+Eigen::Vector3d closest_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                    const Eigen::Vector3d& c) {
+  Eigen::Matrix<double, 3, 2> basis;
+  basis << b - a, c - a;
+  const Eigen::Vector2d uv = (basis.transpose() * basis).ldlt().solve(basis.transpose() * (p - a));
+  if (uv.x() >= 0.0 && uv.y() >= 0.0 && uv.x() + uv.y() <= 1.0) return {1.0 - uv.x() - uv.y(), uv.x(), uv.y()};
+  const Eigen::Vector3d corner[3] = {a, b, c};
+  Eigen::Vector3d best;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (int e = 0; e < 3; ++e) {
+    const Eigen::Vector3d& e0 = corner[e];
+    const Eigen::Vector3d& e1 = corner[(e + 1) % 3];
+    const double t = std::clamp((p - e0).dot(e1 - e0) / (e1 - e0).squaredNorm(), 0.0, 1.0);
+    const double d = (p - (e0 + t * (e1 - e0))).squaredNorm();
+    if (d < best_d) {
+      best_d = d;
+      best.setZero();
+      best[e] = 1.0 - t;
+      best[(e + 1) % 3] = t;
+    }
+  }
+  return best;
+}
+
+// The closest points of segments a0-a1 and b0-b1 as parameters (s on a, t on b): the lines'
+// closest points, each clamped to its segment and the other re-projected (the edges here are
+// never parallel to round-off: the boxes are perturbed).
+Eigen::Vector2d closest_on_segments(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0,
+                                    const Eigen::Vector3d& b1) {
+  const Eigen::Vector3d u = a1 - a0, v = b1 - b0, w = a0 - b0;
+  const double A = u.dot(u), B = u.dot(v), C = v.dot(v), D = u.dot(w), E = v.dot(w);
+  double s = std::clamp((B * E - C * D) / (A * C - B * B), 0.0, 1.0);
+  double t = std::clamp((B * s + E) / C, 0.0, 1.0);
+  s = std::clamp((B * t - D) / A, 0.0, 1.0);
+  return {s, t};
+}
+
+// IPC's smoothed Coulomb antiderivative f0 (Li et al. 2020, eq. 15), eps_u = epsv dt.
+double f0(double y, double eps_u) {
+  return y >= eps_u ? y : -y * y * y / (3.0 * eps_u * eps_u) + y * y / eps_u + eps_u / 3.0;
+}
+
+// The lagged friction of every candidate pair closer than dhat at x_lag, on its own: the normal
+// force lambda = -kappa b'(d) 2 sqrt(d) (times the mollifier for an edge pair), the closest
+// points' weights and normal frozen at x_lag, the tangential part of the relative displacement
+// from x_start to x, and mu lambda f0(|u_T|). Shares no code with FrictionPotential.
+Reference friction_reference(const Model& m, const ContactCandidates& c, const std::vector<double>& x_lag,
+                             const std::vector<double>& x_start, const std::vector<double>& x, double kappa,
+                             const std::vector<int32_t>& group, int32_t num_groups) {
+  const double dhat2 = kDhat * kDhat, mu = 0.4, eps_u = 0.1 * kDt;
+  const double* r = m.rest_positions.data();
+  auto lag = [&](int32_t v) { return point(x_lag.data(), v); };
+  auto moved = [&](int32_t v) { return Eigen::Vector3d(point(x.data(), v) - point(x_start.data(), v)); };
+  auto term = [&](double lambda, const Eigen::Vector3d& normal, const Eigen::Vector3d& slip) {
+    const Eigen::Vector3d tangential = slip - slip.dot(normal) * normal;
+    return mu * lambda * f0(tangential.norm(), eps_u);
+  };
+  auto normal_force = [&](double d) { return -kappa * barrier_first_derivative(d, dhat2) * 2.0 * std::sqrt(d); };
+  Reference ref(num_groups);
+  for (const IndexPair& pair : c.vertex_triangle) {
+    const int32_t p = pair.first;
+    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+    const Eigen::Vector3d w = closest_on_triangle(lag(p), lag(t[0]), lag(t[1]), lag(t[2]));
+    const Eigen::Vector3d gap = lag(p) - (w[0] * lag(t[0]) + w[1] * lag(t[1]) + w[2] * lag(t[2]));
+    if (gap.squaredNorm() >= dhat2) continue;
+    const Eigen::Vector3d slip = moved(p) - (w[0] * moved(t[0]) + w[1] * moved(t[1]) + w[2] * moved(t[2]));
+    ref.add(term_group(group, {p, t[0], t[1], t[2]}), term(normal_force(gap.squaredNorm()), gap.normalized(), slip));
+  }
+  for (const IndexPair& pair : c.edge_edge) {
+    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+    const Eigen::Vector2d st = closest_on_segments(lag(ea[0]), lag(ea[1]), lag(eb[0]), lag(eb[1]));
+    auto on_a = [&](auto&& f) { return Eigen::Vector3d((1.0 - st[0]) * f(ea[0]) + st[0] * f(ea[1])); };
+    auto on_b = [&](auto&& f) { return Eigen::Vector3d((1.0 - st[1]) * f(eb[0]) + st[1] * f(eb[1])); };
+    const Eigen::Vector3d gap = on_a(lag) - on_b(lag);
+    if (gap.squaredNorm() >= dhat2) continue;
+    const double eps_x = edge_edge_mollifier_threshold(point(r, ea[0]), point(r, ea[1]), point(r, eb[0]), point(r, eb[1]));
+    const double lambda = normal_force(gap.squaredNorm()) *
+                          edge_edge_mollifier(lag(ea[0]), lag(ea[1]), lag(eb[0]), lag(eb[1]), eps_x);
+    ref.add(term_group(group, {ea[0], ea[1], eb[0], eb[1]}), term(lambda, gap.normalized(), on_a(moved) - on_b(moved)));
+  }
+  for (const IndexPair& pair : c.vertex_plane) {
+    const ObstaclePlane& plane = m.obstacle_planes[pair.second];
+    const double s = (lag(pair.first) - plane.point).dot(plane.normal);
+    if (s * s >= dhat2) continue;
+    ref.add(term_group(group, {pair.first}), term(normal_force(s * s), plane.normal, moved(pair.first)));
+  }
+  return ref;
+}
+
 bool close(double a, double b, double tolerance = 1e-12) {
   return std::abs(a - b) <= tolerance * std::max(std::abs(a), std::abs(b));
 }
@@ -131,36 +225,6 @@ std::vector<int32_t> groups_of_bodies(const Model& m, std::initializer_list<int3
   const std::vector<int32_t> per_body(body_group);
   for (int32_t v = 0; v < m.num_vertices; ++v) group[v] = per_body[m.vertex_body[v]];
   return group;
-}
-
-// The friction, at x, of the contacts touching the vertices of `mask` alone: lagged at x_lag as
-// the tests lag the full one, from a barrier whose candidates are only the pairs with a vertex in
-// the mask (a sweep of no motion from an empty candidate list searches exactly those).
-double friction_touching(const Model& model, const std::vector<uint8_t>& mask, const std::vector<double>& x_lag,
-                         const std::vector<double>& x_start, double kappa, const std::vector<double>& x,
-                         const ContactCandidates* all = nullptr) {
-  BarrierPotential part(model, kDhat);
-  const std::vector<double> no_motion(model.num_dofs(), 0.0);
-  part.sweep(x_lag.data(), no_motion.data(), mask.data());
-  if (all) {
-    // Premise: those are the pairs of the full list with a vertex in the mask.
-    int64_t touching = 0;
-    for (const IndexPair& p : all->vertex_triangle) {
-      const int32_t* t = &model.surface_triangles[3 * int64_t{p.second}];
-      touching += mask[p.first] | mask[t[0]] | mask[t[1]] | mask[t[2]];
-    }
-    for (const IndexPair& p : all->edge_edge) {
-      const int32_t* a = &model.surface_edges[2 * int64_t{p.first}];
-      const int32_t* b = &model.surface_edges[2 * int64_t{p.second}];
-      touching += mask[a[0]] | mask[a[1]] | mask[b[0]] | mask[b[1]];
-    }
-    for (const IndexPair& p : all->vertex_plane) touching += mask[p.first];
-    CHECK(part.candidates().size() == touching);
-  }
-  part.build_active_set(x_lag.data());
-  FrictionPotential f(model, FrictionTable(2, {0.4, 0.4}), 0.1);
-  f.lag(part, x_lag.data(), kappa, x_start.data(), kDt);
-  return f.energy(x.data());
 }
 
 // The contact state of the tests: candidates and active set at x_lag, friction lagged there with
@@ -180,13 +244,8 @@ struct ContactSetup {
     friction.lag(contact, x_lag.data(), kKappa, x_start.data(), kDt);
   }
 
-  double friction_touching(const std::vector<uint8_t>& mask) const {
-    return ::friction_touching(model, mask, x_lag, x_start, kKappa, x, &contact.candidates());
-  }
-  std::vector<uint8_t> mask_of(const std::vector<int32_t>& group, int32_t g) const {
-    std::vector<uint8_t> mask(model.num_vertices);
-    for (int32_t v = 0; v < model.num_vertices; ++v) mask[v] = group[v] == g;
-    return mask;
+  Reference friction_reference(const std::vector<int32_t>& group, int32_t num_groups) const {
+    return ::friction_reference(model, contact.candidates(), x_lag, x_start, x, kKappa, group, num_groups);
   }
 };
 
@@ -215,6 +274,7 @@ TEST_CASE("group energies with every vertex in group 0 add up to energy()") {
   // And the element-by-element references agree with energy(), so they can judge the groups.
   CHECK(close(elastic_reference(model, s.x.data(), zero, 1).all(), elastic.energy(s.x.data())));
   CHECK(close(barrier_reference(model, s.contact.candidates(), s.x.data(), zero, 1).all(), s.contact.energy(s.x.data())));
+  CHECK(close(s.friction_reference(zero, 1).all(), s.friction.energy(s.x.data())));
 }
 
 TEST_CASE("group energies along bodies: each group totals the terms touching it, group -1 adds nothing") {
@@ -239,20 +299,20 @@ TEST_CASE("group energies along bodies: each group totals the terms touching it,
                             f = grouped(friction_terms, s.x);
   const Reference e_ref = elastic_reference(model, s.x.data(), group, num_groups);
   const Reference b_ref = barrier_reference(model, s.contact.candidates(), s.x.data(), group, num_groups);
+  const Reference f_ref = s.friction_reference(group, num_groups);
   for (int32_t g = 0; g < num_groups; ++g) {
     CAPTURE(g);
     CHECK(e_ref.total[g] > 0.0);
     CHECK(b_ref.total[g] > 0.0);
     CHECK(close(e[g] - offset[g], e_ref.total[g]));
     CHECK(close(b[g] - offset[g], b_ref.total[g]));
-    const double f_ref = s.friction_touching(s.mask_of(group, g));
-    CHECK(f_ref > 0.0);
-    CHECK(close(f[g] - offset[g], f_ref));
+    CHECK(f_ref.total[g] > 0.0);
+    CHECK(close(f[g] - offset[g], f_ref.total[g]));
   }
   // Body 3 has tets and plane contacts of its own: they are in no group.
   CHECK(e_ref.total[num_groups] > 0.0);
   CHECK(b_ref.total[num_groups] > 0.0);
-  CHECK(s.friction_touching(s.mask_of(group, -1)) > 0.0);
+  CHECK(f_ref.total[num_groups] > 0.0);
 
   // Moving the vertices of group -1 changes no group's total, not even in the last bit.
   std::vector<double> moved = s.x;
@@ -306,6 +366,7 @@ TEST_CASE("incremental potential group energy: the terms of each group, weighted
   potential.group_energy(x, group.data(), 2, out.data());
   const Reference e_ref = elastic_reference(model, x, group, 2);
   const Reference b_ref = barrier_reference(model, contact.candidates(), x, group, 2);
+  const Reference f_ref = friction_reference(model, contact.candidates(), s.x_lag, s.x_start, s.x, kappa, group, 2);
   for (int32_t g = 0; g < 2; ++g) {
     CAPTURE(g);
     double inertia_gravity = 0.0;
@@ -315,8 +376,7 @@ TEST_CASE("incremental potential group energy: the terms of each group, weighted
       inertia_gravity += model.mass[v] * (0.5 * dx.squaredNorm() - scale * model.gravity.dot(dx));
     }
     const double expected = inertia_gravity + scale * e_ref.total[g] +
-                            contact_scale * (kappa * b_ref.total[g] +
-                                             friction_touching(model, s.mask_of(group, g), s.x_lag, s.x_start, kappa, s.x));
+                            contact_scale * (kappa * b_ref.total[g] + f_ref.total[g]);
     CHECK(close(out[g], expected));
   }
 
