@@ -222,7 +222,7 @@ Slope run_slope_file(const std::string& file, const std::string& tag) {
   REQUIRE(s.model.obstacle_planes.size() == 1);
   const Eigen::Vector3d n = s.model.obstacle_planes[0].normal;
   s.down = (Eigen::Vector3d(0, -1, 0) - n * n.dot(Eigen::Vector3d(0, -1, 0))).normalized();
-  CHECK(n.y() / std::hypot(n.x(), n.y()) == doctest::Approx(2 / std::sqrt(5.0)));  // tan(theta) = 0.5
+  CHECK(n.y() / std::hypot(n.x(), n.y()) == doctest::Approx(2 / std::sqrt(5.0)).epsilon(1e-12));  // tan(theta) = 0.5
   return s;
 }
 

@@ -174,12 +174,12 @@ TEST_CASE("read_msh: hand-written 2.2 file with mixed elements and unused nodes 
   // Tet 5 was (20 40 35 50) = (1 3 2 4), negative; its last two vertices are swapped.
   CHECK(std::vector<int32_t>(mesh.tets.begin() + 4, mesh.tets.end()) ==
         std::vector<int32_t>{1, 3, 4, 2});
-  CHECK(signed_tet_volume(mesh, 0) == doctest::Approx(1.0 / 6.0));
-  CHECK(signed_tet_volume(mesh, 1) == doctest::Approx(1.0 / 3.0));
+  CHECK(signed_tet_volume(mesh, 0) == doctest::Approx(1.0 / 6.0).epsilon(1e-12));
+  CHECK(signed_tet_volume(mesh, 1) == doctest::Approx(1.0 / 3.0).epsilon(1e-12));
   const SurfaceMesh surface = extract_surface(mesh);
   CHECK(surface.num_triangles() == 6);
   CHECK(is_closed_and_consistently_wound(surface));
-  CHECK(divergence_volume(mesh, surface) == doctest::Approx(0.5));
+  CHECK(divergence_volume(mesh, surface) == doctest::Approx(0.5).epsilon(1e-12));
 }
 
 namespace {

@@ -122,10 +122,10 @@ TEST_CASE("a good scene builds the buffers it describes") {
   CHECK(m.num_vertices == 2 * 2 * 3 * 4);
   double mass = 0.0;
   for (double mi : m.mass) mass += mi;
-  CHECK(mass == doctest::Approx(2 * 800.0 * 6.0));
+  CHECK(mass == doctest::Approx(2 * 800.0 * 6.0).epsilon(1e-12));
   // Copies are offset by the spacing; the second copy's first vertex is 5 m further along x.
   CHECK(m.rest_positions[3 * m.bodies[1].vertex_begin] ==
-        doctest::Approx(m.rest_positions[0] + 5.0));
+        doctest::Approx(m.rest_positions[0] + 5.0).epsilon(1e-12));
   // The boundary box at z = -1.5 holds the bottom layer (3 x 2 vertices... per copy: 2 x 3 = 6).
   int fixed = 0;
   for (int32_t d : m.dirichlet) fixed += d >= 0;
@@ -341,12 +341,13 @@ TEST_CASE("the shipped bowl obj loads as an open shell") {
   double lowest = 0.0, highest = -1.0;
   for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&scene.model.rest_positions[3 * v]);
-    CHECK((p - Eigen::Vector3d(0, -5, 0)).norm() == doctest::Approx(0.5));
+    // bowl.obj holds its coordinates to 9 significant digits: radii within ~1e-9 of 0.5.
+    CHECK((p - Eigen::Vector3d(0, -5, 0)).norm() == doctest::Approx(0.5).epsilon(1e-8));
     lowest = std::min(lowest, p.y() + 5.0);
     highest = std::max(highest, p.y() + 5.0);
   }
-  CHECK(lowest == doctest::Approx(-0.5));
-  CHECK(highest == doctest::Approx(0.0));
+  CHECK(lowest == doctest::Approx(-0.5).epsilon(1e-12));
+  CHECK(highest == doctest::Approx(0.0).epsilon(1e-12));
 }
 
 TEST_CASE("obstacle and contact errors name the key or the file") {
