@@ -53,10 +53,11 @@ TEST_CASE("energy balance: friction takes out exactly the kinetic energy of the 
   REQUIRE(run.rows.back().kinetic_energy < 1e-4);  // stopped (a little vibration is left)
   const double kinetic0 = 0.5 * 1.0 * 1.0 * 1.0;
   MESSAGE("friction dissipated " << dissipated << " J of " << kinetic0 << " J; integrator " << integrator << " J");
-  CHECK(dissipated == doctest::Approx(kinetic0).epsilon(0.01));
+  // Measured 0.3% short: implicit Euler's own dissipation (integrator_energy) takes the rest.
+  CHECK(dissipated == test::relative(kinetic0, 0.01));
   // The block starts 0.5 mm above the floor, inside dhat: the first step's barrier stiffness
   // turns on the barrier energy of that gap, and nothing else changes the stiffness.
-  CHECK(run.rows.front().balance.kappa_energy == doctest::Approx(run.rows.front().barrier_energy).epsilon(1e-9));
+  CHECK(run.rows.front().balance.kappa_energy == test::relative(run.rows.front().barrier_energy, 1e-9));
   CHECK(run.rows.front().balance.kappa_energy > 0.0);
   for (size_t i = 1; i < run.rows.size(); ++i) CHECK(run.rows[i].balance.kappa_energy == 0.0);
 }
@@ -72,12 +73,13 @@ TEST_CASE("energy balance: a wall pushing a block at v does work mu m g v per se
   for (size_t i = 30; i < run.rows.size(); ++i) {
     const StepStats& s = run.rows[i];
     CAPTURE(s.step);
-    CHECK(s.balance.boundary_work == doctest::Approx(expected).epsilon(0.05));
-    CHECK(s.balance.friction_dissipated == doctest::Approx(expected).epsilon(0.05));
+    // Both measured 2% to 3% below mu m g v dt, like the push force (test_kinematic.cpp).
+    CHECK(s.balance.boundary_work == test::relative(expected, 0.05));
+    CHECK(s.balance.friction_dissipated == test::relative(expected, 0.05));
     work += s.balance.boundary_work;
     dissipated += s.balance.friction_dissipated;
   }
-  CHECK(work == doctest::Approx(dissipated).epsilon(0.02));
+  CHECK(work == test::relative(dissipated, 0.02));
 }
 
 TEST_CASE("energy balance: the work of a prescribed twist is the energy the bar gains, and fixed ends do none") {
@@ -95,7 +97,7 @@ TEST_CASE("energy balance: the work of a prescribed twist is the energy the bar 
   const double gained = twist.rows.back().total_energy - twist.start_energy;
   MESSAGE("twist: boundary work " << work << " J, energy gained " << gained << " J, integrator " << integrator << " J");
   REQUIRE(work > 1.0);
-  CHECK(work == doctest::Approx(gained).epsilon(1e-3));
+  CHECK(work == test::relative(gained, 1e-3));
 
   // The cantilever's clamp is fixed: no boundary work, at every step exactly.
   const Run cantilever = run_scene(load_scene(test::scene_path("cantilever.json")), 20);

@@ -73,7 +73,7 @@ TEST_CASE("free fall: implicit Euler's position error is g h t / 2") {
   const double err_vs_exact = max_free_fall_error("implicit_euler", [](int d, double x0, double t) {
     return x0 + kV0[d] * t + 0.5 * kA[d] * t * t;
   });
-  CHECK(err_vs_exact == doctest::Approx(0.5 * kG * kDt * 1.0).epsilon(1e-6));
+  CHECK(err_vs_exact == test::relative(0.5 * kG * kDt * 1.0, 1e-6));
 }
 
 namespace {
@@ -196,7 +196,7 @@ TEST_CASE("symplectic Euler is x += h v_{n+1} with v_{n+1} = v_n + h a_n") {
   // y_n = y0 + v0 t - g h^2 n (n + 1) / 2 for the same recursion as backward Euler here.
   const double t = 10 * kDt;
   const double y0 = scene.model.rest_positions[1];
-  CHECK(sim.state().x[1] == doctest::Approx(y0 + 2.0 * t - 0.5 * kG * kDt * kDt * 10 * 11).epsilon(1e-12));
+  CHECK(sim.state().x[1] == test::relative(y0 + 2.0 * t - 0.5 * kG * kDt * kDt * 10 * 11, 1e-12));
 }
 
 // ---- generalized-alpha (issue 16) -------------------------------------------------------------
@@ -239,11 +239,11 @@ TEST_CASE("generalized-alpha: Chung and Hulbert's parameters, with rho_inf = 1 g
   for (double rho : {0.0, 0.5, 0.8, 1.0}) {
     CAPTURE(rho);
     const IntegratorParams p = generalized_alpha(rho);
-    CHECK(p.alpha_m == doctest::Approx((2 * rho - 1) / (rho + 1)).epsilon(1e-15));
-    CHECK(p.alpha_f == doctest::Approx(rho / (rho + 1)).epsilon(1e-15));
-    CHECK(p.gamma == doctest::Approx(0.5 - p.alpha_m + p.alpha_f).epsilon(1e-15));  // second order
+    CHECK(p.alpha_m == test::relative((2 * rho - 1) / (rho + 1), 1e-15));
+    CHECK(p.alpha_f == test::relative(rho / (rho + 1), 1e-15));
+    CHECK(p.gamma == test::relative(0.5 - p.alpha_m + p.alpha_f, 1e-15));  // second order
     const double shift = 1 - p.alpha_m + p.alpha_f;
-    CHECK(2 * p.alpha * p.beta == doctest::Approx(shift * shift / 4).epsilon(1e-15));
+    CHECK(2 * p.alpha * p.beta == test::relative(shift * shift / 4, 1e-15));
   }
   const IntegratorParams one = generalized_alpha(1.0), newmark = *integrator_preset("newmark");
   CHECK(one.alpha_m == 0.5);
@@ -268,10 +268,10 @@ TEST_CASE("generalized-alpha: the spectral radius is rho_inf at infinite frequen
     CHECK(spectral_radius(p, 0.05) > 1.0 - 1e-4);
   }
   // HHT-alpha (alpha_f = -alpha_HHT) and WBZ-alpha (alpha_m = alpha_B): (1 + alpha) / (1 - alpha).
-  CHECK(spectral_radius(generalized_alpha_weights(0.0, 0.2), 1e6) == doctest::Approx(0.8 / 1.2).epsilon(1e-4));
-  CHECK(spectral_radius(generalized_alpha_weights(-0.3, 0.0), 1e6) == doctest::Approx(0.7 / 1.3).epsilon(1e-4));
+  CHECK(spectral_radius(generalized_alpha_weights(0.0, 0.2), 1e6) == test::relative(0.8 / 1.2, 1e-4));
+  CHECK(spectral_radius(generalized_alpha_weights(-0.3, 0.0), 1e6) == test::relative(0.7 / 1.3, 1e-4));
   // Newmark average acceleration keeps every frequency; implicit Euler damps the high ones fully.
-  CHECK(spectral_radius(*integrator_preset("newmark"), 1e6) == doctest::Approx(1.0).epsilon(1e-9));
+  CHECK(spectral_radius(*integrator_preset("newmark"), 1e6) == test::relative(1.0, 1e-9));
   CHECK(spectral_radius(*integrator_preset("implicit_euler"), 1e6) < 1e-5);
 }
 
@@ -290,10 +290,10 @@ TEST_CASE("generalized-alpha: second order on the oscillator, implicit Euler fir
     CAPTURE(rho);
     const IntegratorParams p = generalized_alpha(rho);
     const double ratio = error(p, 0.01) / error(p, 0.005);
-    CHECK(ratio == doctest::Approx(4.0).epsilon(0.05));
+    CHECK(ratio == test::relative(4.0, 0.05));
   }
   const IntegratorParams euler = *integrator_preset("implicit_euler");
-  CHECK(error(euler, 0.01) / error(euler, 0.005) == doctest::Approx(2.0).epsilon(0.1));
+  CHECK(error(euler, 0.01) / error(euler, 0.005) == test::relative(2.0, 0.1));
 }
 
 namespace {
@@ -362,7 +362,7 @@ TEST_CASE("generalized-alpha is second order on the cantilever: the error falls 
       // Within 10%: the error is C dt^q plus higher-order terms, which at these steps move the
       // ratio by up to 7% (implicit Euler's first: 2.00 against 2.14); one order more or less
       // would move it by a factor of 2.
-      CHECK(errors[i] / errors[i + 1] == doctest::Approx(expected).epsilon(0.1));
+      CHECK(errors[i] / errors[i + 1] == test::relative(expected, 0.1));
     }
   };
   check_order(generalized_alpha(0.8), 2);

@@ -4,6 +4,7 @@
 #include "engine/joints.hpp"
 #include "engine/simulation.hpp"
 #include "test_support.hpp"
+#include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
 
@@ -45,7 +46,7 @@ TEST_CASE("joints: the attachment reproduces the joint point on each body") {
     CHECK(m.vertex_body[m.joints[1].vertex[4 + k]] == 1);
   }
   CHECK((side - Eigen::Vector3d(1, 0.01, 0.02)).norm() < 1e-14);
-  CHECK(sum == doctest::Approx(1.0).epsilon(1e-14));
+  CHECK(sum == test::relative(1.0, 1e-14));
 }
 
 TEST_CASE("joints: bad joint entries are refused with the key named") {

@@ -24,12 +24,24 @@ TEST_CASE("static: a column hanging under its own weight stretches by rho g L^2 
   })", "hanging");
   Simulation sim(scene);
   REQUIRE(sim.step().status == StepStatus::ok);
-  double lowest = 0.0;
+  double lowest = 0.0, mean = 0.0;
+  int count = 0;
   for (int32_t v = 0; v < scene.model.num_vertices; ++v)
-    if (scene.model.rest_positions[3 * v + 1] < -0.499)
-      lowest = std::min(lowest, sim.state().x[3 * v + 1] - scene.model.rest_positions[3 * v + 1]);
+    if (scene.model.rest_positions[3 * v + 1] < -0.499) {
+      const double u = sim.state().x[3 * v + 1] - scene.model.rest_positions[3 * v + 1];
+      lowest = std::min(lowest, u);
+      mean += u;
+      ++count;
+    }
+  mean /= count;
   const double expected = -rho * g * L * L / (2 * E);
-  CHECK(lowest == doctest::Approx(expected).epsilon(0.01));
+  MESSAGE("free end: mean ", mean, " m, lowest ", lowest, " m, expected ", expected, " m");
+  // Linear elements reproduce a bar's nodal displacements exactly, so the section's mean is
+  // exact but for the solver's tolerance: measured 2e-6 off. Single vertices are not: lumped
+  // masses differ between the section's corners and middle, which bends the section (the
+  // lowest vertex is 1.4% past the mean).
+  CHECK(mean == test::relative(expected, 1e-4));
+  CHECK(lowest == test::relative(expected, 0.03));
   CHECK(sim.state().v[0] == 0.0);
 }
 

@@ -7,18 +7,27 @@
 #include "engine/scene/scene.hpp"
 
 #include <Eigen/Core>
+#include <doctest/doctest.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 namespace nexdyn::test {
+
+// doctest's Approx(v).epsilon(e) accepts |a - v| < e (1 + max(|a|, |v|)): for values far below 1
+// that is an absolute tolerance of about e, not a relative one (a 5% check of a 2 mm/s creep
+// speed would accept 50 mm/s). relative(v, e) accepts |a - v| < e max(|a|, |v|) (and a = v = 0).
+inline doctest::Approx relative(double value, double tolerance) {
+  return doctest::Approx(value).epsilon(tolerance).scale(std::numeric_limits<double>::min());
+}
 
 // A fresh empty folder under the system temp dir, unique per call.
 inline std::filesystem::path temp_dir(const std::string& tag) {

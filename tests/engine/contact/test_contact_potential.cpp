@@ -331,6 +331,6 @@ TEST_CASE("cached pair distances stay exact through masked sweeps that move one 
       const double s = (point(pr.first) - plane.point).dot(plane.normal);
       min_ref = std::min(min_ref, s > 0.0 ? s * s : 0.0);
     }
-    CHECK(contact.min_squared_distance(x.data()) == doctest::Approx(min_ref).epsilon(1e-12));
+    CHECK(contact.min_squared_distance(x.data()) == test::relative(min_ref, 1e-12));
   }
 }

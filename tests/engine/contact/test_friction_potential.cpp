@@ -133,7 +133,8 @@ TEST_CASE("friction between bodies: a block slides to rest after v0^2 / (2 mu g)
     mean_x += x1[3 * v] / count;
     mean_y += x1[3 * v + 1] / count;
   }
-  const double expected = 1.0 / (2 * 0.5 * 9.81);
-  CHECK(mean_x - (-0.1) == doctest::Approx(expected).epsilon(0.05));
+  // Less implicit Euler's h v0 / 2 = 2.5 mm (see scene block_slide): measured 0.3% off.
+  const double expected = 1.0 / (2 * 0.5 * 9.81) - 0.005 * 1.0 / 2;
+  CHECK(mean_x - (-0.1) == test::relative(expected, 0.01));
   CHECK(mean_y > 0.1);  // still on top of the fixed block, not through it
 }

@@ -99,7 +99,7 @@ TEST_CASE("kinematic: the augmented Lagrangian's gradient and Hessian match its 
   z[dof] += 1e-3;
   std::vector<double> moved(x.size(), 0.0);
   kinematic.add_gradient(z.data(), moved.data());
-  CHECK((moved[dof] - grad[dof]) / 1e-3 == doctest::Approx(values[dof]).epsilon(1e-9));
+  CHECK((moved[dof] - grad[dof]) / 1e-3 == test::relative(values[dof], 1e-9));
   CHECK(values[dof] > 0.0);
   // On target the update keeps the multipliers (up to the rounding of x - t).
   std::vector<double> p(x.size());
@@ -145,9 +145,10 @@ TEST_CASE("kinematic: a wall at 0.5 m/s pushes a block across a floor with frict
     mass += m.mass[v];
     momentum += m.mass[v] * run.v[3 * v];
   }
-  CHECK(momentum / mass == doctest::Approx(0.5).epsilon(0.01));
-  // The push is the kinetic friction it overcomes: mu m g along x.
-  CHECK(run.force.x() == doctest::Approx(0.5 * mass * 9.81).epsilon(0.03));
+  CHECK(momentum / mass == test::relative(0.5, 1e-3));  // measured 6e-5 off
+  // The push is the kinetic friction it overcomes: mu m g along x. Measured 1.9% below it, as is
+  // the friction dissipation per step (test_energy_balance.cpp): not yet explained, see issue 17.
+  CHECK(run.force.x() == test::relative(0.5 * mass * 9.81, 0.03));
   CHECK(std::abs(run.force.z()) < 1e-3 * run.force.x());  // the tets' diagonals are not symmetric
   // The wall is exactly where its motion puts it.
   for (int32_t v = block; v < m.num_vertices; ++v)

@@ -10,6 +10,7 @@
 #include "engine/mesh/box_mesher.hpp"
 #include "engine/mesh/surface.hpp"
 #include "tests/engine/mesh/mesh_checks.hpp"
+#include "tests/engine/test_support.hpp"
 
 using namespace nexdyn;
 
@@ -35,13 +36,13 @@ TEST_CASE("make_box_mesh: counts and volume and orientation and a closed conform
     CHECK(mesh.num_tets() == kTetsPerBoxCell * nx * ny * nz);
     CHECK(mesh.num_vertices() == (nx + 1) * (ny + 1) * (nz + 1));
     const double volume = box.size.prod();
-    CHECK(mesh_volume(mesh) == doctest::Approx(volume).epsilon(1e-12));
+    CHECK(mesh_volume(mesh) == test::relative(volume, 1e-12));
     CHECK(nexdyn::test::count_non_positive_tets(mesh) == 0);
     CHECK(find_degenerate_tet(mesh) == -1);
     // Every Kuhn tet is one sixth of its cell.
     const double cell_volume = volume / (nx * ny * nz);
     for (int32_t t = 0; t < mesh.num_tets(); ++t)
-      CHECK(signed_tet_volume(mesh, t) == doctest::Approx(cell_volume / 6.0).epsilon(1e-12));
+      CHECK(signed_tet_volume(mesh, t) == test::relative(cell_volume / 6.0, 1e-12));
 
     // A non-conforming split would leave unmatched interior faces and break these counts.
     const SurfaceMesh surface = extract_surface(mesh);
@@ -49,7 +50,7 @@ TEST_CASE("make_box_mesh: counts and volume and orientation and a closed conform
     CHECK(nexdyn::test::is_closed_and_consistently_wound(surface));
     CHECK(nexdyn::test::euler_characteristic(surface) == 2);
     CHECK(nexdyn::test::count_components(surface, mesh.num_vertices()) == 1);
-    CHECK(nexdyn::test::divergence_volume(mesh, surface) == doctest::Approx(volume).epsilon(1e-12));
+    CHECK(nexdyn::test::divergence_volume(mesh, surface) == test::relative(volume, 1e-12));
 
     // Centred: the bounding box is exactly [-size/2, size/2] and the vertices average to 0.
     for (int d = 0; d < 3; ++d) {

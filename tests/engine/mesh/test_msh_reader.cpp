@@ -16,6 +16,7 @@
 #include "engine/mesh/msh_reader.hpp"
 #include "engine/mesh/surface.hpp"
 #include "tests/engine/mesh/mesh_checks.hpp"
+#include "tests/engine/test_support.hpp"
 
 namespace fs = std::filesystem;
 using namespace nexdyn;
@@ -127,13 +128,13 @@ TEST_CASE("read_msh: every shared IPC mesh matches mesh_info.jsonl") {
     CHECK(mesh.num_tets() == expected.at("tets").get<int64_t>());
     CHECK(surface.num_triangles() == expected.at("boundary_tris").get<int64_t>());
     const double total_volume = expected.at("total_vol").get<double>();
-    CHECK(mesh_volume(mesh) == doctest::Approx(total_volume).epsilon(1e-9));
+    CHECK(mesh_volume(mesh) == test::relative(total_volume, 1e-9));
     CHECK(count_non_positive_tets(mesh) == 0);
     CHECK(find_degenerate_tet(mesh) == -1);
 
     // Closed, consistently wound, wound outward (divergence theorem gives +volume, not -volume).
     CHECK(is_closed_and_consistently_wound(surface));
-    CHECK(divergence_volume(mesh, surface) == doctest::Approx(total_volume).epsilon(1e-9));
+    CHECK(divergence_volume(mesh, surface) == test::relative(total_volume, 1e-9));
     CHECK(surface.edges == edges_of(surface));
     CHECK(std::is_sorted(surface.vertices.begin(), surface.vertices.end()));
     CHECK(std::adjacent_find(surface.vertices.begin(), surface.vertices.end()) ==
@@ -174,12 +175,12 @@ TEST_CASE("read_msh: hand-written 2.2 file with mixed elements and unused nodes 
   // Tet 5 was (20 40 35 50) = (1 3 2 4), negative; its last two vertices are swapped.
   CHECK(std::vector<int32_t>(mesh.tets.begin() + 4, mesh.tets.end()) ==
         std::vector<int32_t>{1, 3, 4, 2});
-  CHECK(signed_tet_volume(mesh, 0) == doctest::Approx(1.0 / 6.0).epsilon(1e-12));
-  CHECK(signed_tet_volume(mesh, 1) == doctest::Approx(1.0 / 3.0).epsilon(1e-12));
+  CHECK(signed_tet_volume(mesh, 0) == test::relative(1.0 / 6.0, 1e-12));
+  CHECK(signed_tet_volume(mesh, 1) == test::relative(1.0 / 3.0, 1e-12));
   const SurfaceMesh surface = extract_surface(mesh);
   CHECK(surface.num_triangles() == 6);
   CHECK(is_closed_and_consistently_wound(surface));
-  CHECK(divergence_volume(mesh, surface) == doctest::Approx(0.5).epsilon(1e-12));
+  CHECK(divergence_volume(mesh, surface) == test::relative(0.5, 1e-12));
 }
 
 namespace {

@@ -10,6 +10,7 @@
 #include "engine/mesh/box_mesher.hpp"
 #include "engine/mesh/surface.hpp"
 #include "tests/engine/mesh/mesh_checks.hpp"
+#include "tests/engine/test_support.hpp"
 
 using namespace nexdyn;
 using nexdyn::test::vertex_at;
@@ -44,7 +45,7 @@ TEST_CASE("extract_surface: a face shared by two tets is interior") {
   CHECK(surface.num_edges() == 9);
   CHECK(surface.vertices.size() == 5);
   CHECK(nexdyn::test::is_closed_and_consistently_wound(surface));
-  CHECK(nexdyn::test::divergence_volume(mesh, surface) == doctest::Approx(0.5).epsilon(1e-12));
+  CHECK(nexdyn::test::divergence_volume(mesh, surface) == test::relative(0.5, 1e-12));
   for (int32_t f = 0; f < surface.num_triangles(); ++f) {
     std::vector<int32_t> ids(surface.triangles.begin() + 3 * f,
                              surface.triangles.begin() + 3 * f + 3);

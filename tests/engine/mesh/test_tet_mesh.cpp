@@ -7,6 +7,7 @@
 
 #include "engine/mesh/tet_mesh.hpp"
 #include "tests/engine/mesh/mesh_checks.hpp"
+#include "tests/engine/test_support.hpp"
 
 using namespace nexdyn;
 
@@ -26,18 +27,18 @@ TEST_SUITE_BEGIN("mesh");
 
 TEST_CASE("signed_tet_volume: sign follows vertex order and scales with size cubed") {
   const Eigen::Vector3d x0(0, 0, 0), x1(1, 0, 0), x2(0, 1, 0), x3(0, 0, 1);
-  CHECK(signed_tet_volume(x0, x1, x2, x3) == doctest::Approx(1.0 / 6.0).epsilon(1e-12));
+  CHECK(signed_tet_volume(x0, x1, x2, x3) == test::relative(1.0 / 6.0, 1e-12));
   // Odd permutations flip the sign, even ones keep it.
-  CHECK(signed_tet_volume(x0, x1, x3, x2) == doctest::Approx(-1.0 / 6.0).epsilon(1e-12));
-  CHECK(signed_tet_volume(x1, x0, x2, x3) == doctest::Approx(-1.0 / 6.0).epsilon(1e-12));
-  CHECK(signed_tet_volume(x1, x2, x0, x3) == doctest::Approx(1.0 / 6.0).epsilon(1e-12));
-  CHECK(signed_tet_volume(x3, x2, x1, x0) == doctest::Approx(1.0 / 6.0).epsilon(1e-12));
+  CHECK(signed_tet_volume(x0, x1, x3, x2) == test::relative(-1.0 / 6.0, 1e-12));
+  CHECK(signed_tet_volume(x1, x0, x2, x3) == test::relative(-1.0 / 6.0, 1e-12));
+  CHECK(signed_tet_volume(x1, x2, x0, x3) == test::relative(1.0 / 6.0, 1e-12));
+  CHECK(signed_tet_volume(x3, x2, x1, x0) == test::relative(1.0 / 6.0, 1e-12));
   // Translation far from the origin keeps the volume (differences are taken first).
   const Eigen::Vector3d far(1e6, -2e6, 3e6);
   CHECK(signed_tet_volume(x0 + far, x1 + far, x2 + far, x3 + far) ==
-        doctest::Approx(1.0 / 6.0).epsilon(1e-9));
-  CHECK(signed_tet_volume(2 * x0, 2 * x1, 2 * x2, 2 * x3) == doctest::Approx(8.0 / 6.0).epsilon(1e-12));
-  CHECK(signed_tet_volume(unit_tet(3.0), 0) == doctest::Approx(27.0 / 6.0).epsilon(1e-12));
+        test::relative(1.0 / 6.0, 1e-9));
+  CHECK(signed_tet_volume(2 * x0, 2 * x1, 2 * x2, 2 * x3) == test::relative(8.0 / 6.0, 1e-12));
+  CHECK(signed_tet_volume(unit_tet(3.0), 0) == test::relative(27.0 / 6.0, 1e-12));
 }
 
 TEST_CASE("orient_tets_positively: flips exactly the negative tets and keeps their vertices") {
@@ -63,7 +64,7 @@ TEST_CASE("orient_tets_positively: flips exactly the negative tets and keeps the
   CHECK(nexdyn::test::count_non_positive_tets(mesh) == 0);
   for (int32_t t = 0; t < mesh.num_tets(); ++t) {
     CHECK(signed_tet_volume(mesh, t) ==
-          doctest::Approx(std::abs(signed_tet_volume(before, t))).epsilon(1e-12));
+          test::relative(std::abs(signed_tet_volume(before, t)), 1e-12));
     std::vector<int32_t> a(before.tets.begin() + 4 * t, before.tets.begin() + 4 * t + 4);
     std::vector<int32_t> b(mesh.tets.begin() + 4 * t, mesh.tets.begin() + 4 * t + 4);
     CHECK(a[0] == b[0]);  // the first vertex stays: only the last two are swapped
@@ -88,7 +89,7 @@ TEST_CASE("find_degenerate_tet: flat tets are found whatever the mesh scale") {
     CAPTURE(scale);
     TetMesh mesh = unit_tet(scale, 10.0 * scale);
     CHECK(find_degenerate_tet(mesh) == -1);
-    CHECK(tet_relative_volume(mesh, 0) == doctest::Approx(1.0 / (6.0 * 2.0 * std::sqrt(2.0))).epsilon(1e-12));
+    CHECK(tet_relative_volume(mesh, 0) == test::relative(1.0 / (6.0 * 2.0 * std::sqrt(2.0)), 1e-12));
 
     // Second tet: apex lifted off the base plane by a relative height h.
     const auto add_flat_tet = [&](double h) {

@@ -91,17 +91,17 @@ TEST_CASE("generalized-alpha from rho_inf, and HHT-alpha from alpha_f, take thei
   CHECK(p.name == "generalized_alpha");
   CHECK(p.rho_inf == 0.5);
   CHECK(p.alpha_m == doctest::Approx(0.0).epsilon(1e-15));  // (2 rho - 1) / (rho + 1)
-  CHECK(p.alpha_f == doctest::Approx(1.0 / 3.0).epsilon(1e-15));
-  CHECK(p.gamma == doctest::Approx(0.5 + 1.0 / 3.0).epsilon(1e-15));
-  CHECK(2.0 * p.alpha * p.beta == doctest::Approx(0.25 * (4.0 / 3.0) * (4.0 / 3.0)).epsilon(1e-15));
+  CHECK(p.alpha_f == test::relative(1.0 / 3.0, 1e-15));
+  CHECK(p.gamma == test::relative(0.5 + 1.0 / 3.0, 1e-15));
+  CHECK(2.0 * p.alpha * p.beta == test::relative(0.25 * (4.0 / 3.0) * (4.0 / 3.0), 1e-15));
   // HHT-alpha with its alpha = -0.1: alpha_m = 0, alpha_f = 0.1, gamma = 0.6, beta = 1.1^2 / 4.
   const Scene hht = test::scene_from_json(scene_with(R"("time": { "alpha_f": 0.1 })"));
   const IntegratorParams& q = hht.time.integrator;
   CHECK(q.name == "custom");
   CHECK(q.alpha_m == 0.0);
   CHECK(q.alpha_f == 0.1);
-  CHECK(q.gamma == doctest::Approx(0.6).epsilon(1e-15));
-  CHECK(2.0 * q.alpha * q.beta == doctest::Approx(1.1 * 1.1 / 4.0).epsilon(1e-15));
+  CHECK(q.gamma == test::relative(0.6, 1e-15));
+  CHECK(2.0 * q.alpha * q.beta == test::relative(1.1 * 1.1 / 4.0, 1e-15));
 }
 
 TEST_CASE("a good scene builds the buffers it describes") {
@@ -122,10 +122,10 @@ TEST_CASE("a good scene builds the buffers it describes") {
   CHECK(m.num_vertices == 2 * 2 * 3 * 4);
   double mass = 0.0;
   for (double mi : m.mass) mass += mi;
-  CHECK(mass == doctest::Approx(2 * 800.0 * 6.0).epsilon(1e-12));
+  CHECK(mass == test::relative(2 * 800.0 * 6.0, 1e-12));
   // Copies are offset by the spacing; the second copy's first vertex is 5 m further along x.
   CHECK(m.rest_positions[3 * m.bodies[1].vertex_begin] ==
-        doctest::Approx(m.rest_positions[0] + 5.0).epsilon(1e-12));
+        test::relative(m.rest_positions[0] + 5.0, 1e-12));
   // The boundary box at z = -1.5 holds the bottom layer (3 x 2 vertices... per copy: 2 x 3 = 6).
   int fixed = 0;
   for (int32_t d : m.dirichlet) fixed += d >= 0;
@@ -342,11 +342,11 @@ TEST_CASE("the shipped bowl obj loads as an open shell") {
   for (int32_t v = o.vertex_begin; v < o.vertex_begin + o.vertex_count; ++v) {
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&scene.model.rest_positions[3 * v]);
     // bowl.obj holds its coordinates to 9 significant digits: radii within ~1e-9 of 0.5.
-    CHECK((p - Eigen::Vector3d(0, -5, 0)).norm() == doctest::Approx(0.5).epsilon(1e-8));
+    CHECK((p - Eigen::Vector3d(0, -5, 0)).norm() == test::relative(0.5, 1e-8));
     lowest = std::min(lowest, p.y() + 5.0);
     highest = std::max(highest, p.y() + 5.0);
   }
-  CHECK(lowest == doctest::Approx(-0.5).epsilon(1e-12));
+  CHECK(lowest == test::relative(-0.5, 1e-12));
   CHECK(highest == doctest::Approx(0.0).epsilon(1e-12));
 }
 
