@@ -6,10 +6,13 @@
 // and under motion along the normal, and the friction potential's gradient and Hessian in x
 // against central differences in the static band (|u| < eps_u) and while sliding (|u| > eps_u);
 // Coulomb's law while sliding (force of magnitude mu lambda against the slip); static and kinetic
-// coefficients (the magnitude from mu_s to mu_k, derivatives again); the closed-form
-// 2 x 2 Hessian against an eigensolver (PSD); parallel and degenerate edges.
+// coefficients (the magnitude from mu_s to mu_k, derivatives again); derivatives at slips down to
+// 1e-8 eps_u and on bases of nearly parallel, parallel and zero-length edges and sliver triangles,
+// with the step and tolerance following the slip (tests/kernels/finite_differences.hpp); the
+// closed-form 2 x 2 Hessian against an eigensolver (PSD); parallel and degenerate edges.
 #include "kernels/barrier/barrier.hpp"
 #include "kernels/friction/friction.hpp"
+#include "tests/kernels/finite_differences.hpp"
 
 #include <doctest/doctest.h>
 
@@ -23,6 +26,7 @@
 #include <numbers>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace nexdyn {
 namespace {
@@ -159,15 +163,22 @@ double relative_error(const A& a, const B& b, double floor) {
 
 TEST_CASE("friction: f0 and f1 are the smoothed Coulomb magnitude and its antiderivative") {
   const double eps_u = 2e-3;
-  // Closed-form values: f1(0) = 0, f1(eps_u) = 1, f0(eps_u) = eps_u, f0(0) = eps_u / 3.
+  // Relative comparisons: the values are far from 1, where doctest's default Approx would add
+  // its epsilon absolutely.
+  auto relative = [](double value, double tolerance) {
+    return doctest::Approx(value).epsilon(tolerance).scale(0.0);
+  };
+  // Closed-form values: f1(0) = 0, f1(eps_u) = 1, f0(eps_u) = eps_u, f0(0) = eps_u / 3, each a
+  // branch returning y or a single rounded expression: exact up to an ulp.
   CHECK(friction_f1(0.0, eps_u) == 0.0);
   CHECK(friction_f1(eps_u, eps_u) == 1.0);
-  CHECK(friction_f0(eps_u, eps_u) == doctest::Approx(eps_u).epsilon(1e-15));
-  CHECK(friction_f0(0.0, eps_u) == doctest::Approx(eps_u / 3.0).epsilon(1e-15));
-  CHECK(friction_f1_over_y(0.0, eps_u) == doctest::Approx(2.0 / eps_u).epsilon(1e-15));
-  // Continuity at eps_u from below (f0, f1, f1' all continuous: D is C2).
+  CHECK(friction_f0(eps_u, eps_u) == relative(eps_u, 1e-15));
+  CHECK(friction_f0(0.0, eps_u) == relative(eps_u / 3.0, 1e-15));
+  CHECK(friction_f1_over_y(0.0, eps_u) == relative(2.0 / eps_u, 1e-15));
+  // Continuity at eps_u from below (f0, f1, f1' all continuous: D is C2); f0 is off by
+  // f1 eps_u 1e-9 there, 1e-9 relative.
   const double below = eps_u * (1.0 - 1e-9);
-  CHECK(friction_f0(below, eps_u) == doctest::Approx(eps_u).epsilon(1e-8));
+  CHECK(friction_f0(below, eps_u) == relative(eps_u, 1e-8));
   CHECK(friction_f1(below, eps_u) == doctest::Approx(1.0).epsilon(1e-8));
   CHECK(std::abs(friction_f1_derivative(below, eps_u)) < 1e-5 / eps_u);
   // f0' = f1, f1' by central differences; f1 / y against the quotient; f1 in [0, 1], increasing.
@@ -200,7 +211,9 @@ TEST_CASE("friction: normal force is minus the derivative of kappa b along the d
                                   barrier((s - h) * (s - h), dhat2)) / (2 * h);
       const double lambda = friction_normal_force(d, dhat2, kappa);
       CHECK(lambda > 0.0);
-      CHECK(lambda == doctest::Approx(fd).epsilon(1e-6));
+      // Relative: lambda is ~1e-6 for dhat2 = 1e-6, so an absolute 1e-6 would accept anything.
+      // Steps of 1e-6 s: truncation ~1e-12, rounding ~eps |ln(d / dhat2)| / 1e-6 ~ 1e-9.
+      CHECK(lambda == doctest::Approx(fd).epsilon(1e-6).scale(0.0));
     }
     CHECK(friction_normal_force(dhat2, dhat2, kappa) == 0.0);
     CHECK(friction_normal_force(2 * dhat2, dhat2, kappa) == 0.0);
@@ -233,8 +246,9 @@ TEST_CASE("friction: closest-point weights and tangent bases per stencil kind") 
       FrictionBasis rotated = f;
       rotated.P = f.P * Eigen::Rotation2Dd(angle).toRotationMatrix();
       const Vector12d dx = displacement_with_slip(f, uniform(rng, 0.0, 3e-3), rng);
+      // Relative (the energy is ~1e-3): |u| is the same up to the rotation's rounding.
       CHECK(friction_energy(rotated, dx, 0.5, 2.0, 1e-3) ==
-            doctest::Approx(friction_energy(f, dx, 0.5, 2.0, 1e-3)).epsilon(1e-12));
+            doctest::Approx(friction_energy(f, dx, 0.5, 2.0, 1e-3)).epsilon(1e-12).scale(0.0));
       CHECK(relative_error(friction_gradient(rotated, dx, 0.5, 2.0, 1e-3),
                            friction_gradient(f, dx, 0.5, 2.0, 1e-3), 1e-12) < 1e-12);
       CHECK(relative_error(friction_hessian(rotated, dx, 0.5, 2.0, 1e-3),
@@ -296,7 +310,9 @@ void check_friction_derivatives(double y_lo, double y_hi, uint64_t seed,
       for (int i = 0; i < 3 * f.num_points; ++i) x_prev(i) += uniform(rng, -1e-3, 1e-3);
       const double y = uniform(rng, y_lo, y_hi) * eps_u;
       const Vector12d x = x_prev + displacement_with_slip(f, y, rng);
-      CHECK(tangential_displacement(f, x - x_prev).norm() == doctest::Approx(y).epsilon(1e-12));
+      // x - x_prev is rounded by eps |x| per coordinate: absolute, not relative to y.
+      CHECK(std::abs(tangential_displacement(f, x - x_prev).norm() - y) <=
+            16.0 * fd::kEps * x.cwiseAbs().maxCoeff());
 
       auto energy = [&](const Vector12d& z) {
         return friction_energy(f, z - x_prev, mu, lambda, eps_u);
@@ -347,6 +363,93 @@ TEST_CASE("friction: static and kinetic coefficients, derivatives match finite d
   check_friction_derivatives(1.05, 1.95, 25, mu, false);
 }
 
+// Slips y = |u| from 1e-8 eps_u to 20 eps_u on lagged bases of well-shaped contacts and of
+// degenerate ones (nearly parallel edges at sin = 1e-8, exactly parallel and zero-length edges, a
+// 1e-8 sliver triangle, a point on an edge's line): T is constant within a lagging iteration, so
+// D(x) = lambda F0(|T^T (x - x_prev)|) stays smooth whatever the basis; only the slip sets the
+// scale. Budget: |u| turns on the scale ell = y (and f1'' jumps at eps_u: ell <= |y - eps_u|);
+// x - x_prev is rounded by eps X (X the largest coordinate), which moves |u| as much; D carries
+// the constant lambda mu eps_u / 3 of f0, so it is rounded by ~4 eps lambda mu (eps_u + y +
+// f1(y) X) while the gradient is only lambda mu f1(y) |T|, and the gradient by
+// ~8 eps lambda mu (f1(y) / y) X |w|^2 against a Hessian of lambda mu (2 / eps_u) |w|^2. Both
+// fall below what differences resolve at the smallest slips (counted).
+TEST_CASE("friction: derivatives at tiny slips and on degenerate bases") {
+  std::mt19937_64 rng(29);
+  const double eps_u = 1e-3, lambda = 2.5, mu = 0.4;
+  std::vector<FrictionBasis> bases;
+  std::vector<std::string> names;
+  for (FrictionStencil kind : kKinds) {
+    bases.push_back(basis_of(make_contact(kind, rng)));
+    names.push_back(kind_name(kind));
+  }
+  const Vec3 a0(0, 0, 0), a1(1, 0, 0);
+  bases.push_back(edge_edge_friction_basis(a0, a1, Vec3(0.2, 1e-3, 0), Vec3(0.8, 1e-3, 6e-9)));
+  names.push_back("nearly parallel edges, sin 1e-8");
+  bases.push_back(edge_edge_friction_basis(a0, a1, Vec3(0.2, 1e-3, 0), Vec3(0.8, 1e-3, 0)));
+  names.push_back("parallel edges");
+  bases.push_back(edge_edge_friction_basis(a0, a0, Vec3(0.2, 1e-3, 0), Vec3(0.2, 1e-3, 0)));
+  names.push_back("zero-length edges");
+  bases.push_back(point_triangle_friction_basis(Vec3(0.3, 1e-9, 1e-3), a0, a1, Vec3(0.5, 1e-8, 0)));
+  names.push_back("sliver triangle 1e-8");
+  bases.push_back(point_edge_friction_basis(Vec3(0.3, 0, 0), a0, a1));
+  names.push_back("point on the edge's line");
+  int checked = 0, beyond = 0;
+  for (size_t k = 0; k < bases.size(); ++k) {
+    const FrictionBasis& f = bases[k];
+    REQUIRE(f.P.allFinite());
+    REQUIRE(f.w.allFinite());
+    for (double y_rel : {1e-8, 1e-6, 1e-4, 1e-2, 0.5, 0.999, 1.001, 3.0, 20.0}) {
+      const double y = y_rel * eps_u;
+      Vector12d x_prev = Vector12d::Zero();
+      for (int i = 0; i < 3 * f.num_points; ++i) x_prev(i) = uniform(rng, -1, 1);
+      const Vector12d x = x_prev + displacement_with_slip(f, y, rng);
+      auto energy = [&](const Vector12d& z) {
+        return friction_energy(f, z - x_prev, mu, lambda, eps_u);
+      };
+      auto gradient = [&](const Vector12d& z) {
+        return friction_gradient(f, z - x_prev, mu, lambda, eps_u);
+      };
+      const Vector12d g = gradient(x);
+      const Matrix12d H = friction_hessian(f, x - x_prev, mu, lambda, eps_u);
+      const double w2 = f.w.squaredNorm();
+      fd::Budget bg;
+      bg.ell = std::min(y, std::abs(y - eps_u));
+      // x - x_prev is rounded by eps X (X: the largest coordinate), which moves |u| by as much.
+      const double X = x.cwiseAbs().maxCoeff();
+      const double f1 = friction_f1(y, eps_u);
+      bg.noise = 4.0 * fd::kEps * lambda * mu * (eps_u + y + f1 * X);
+      bg.analytic = 8.0 * fd::kEps;
+      fd::Budget bh;
+      bh.ell = bg.ell;
+      bh.noise = 8.0 * fd::kEps * (g.norm() + lambda * mu * (f1 / y) * X * w2);
+      bh.analytic = 8.0 * fd::kEps;
+      bh.floor = 1e-12 * lambda * mu * w2 / eps_u;
+      const fd::Result rg =
+          fd::check(g, [&](double h) { return fd::gradient<12>(energy, x, h); }, bg);
+      const fd::Result rh =
+          fd::check(H, [&](double h) { return fd::jacobian<12>(gradient, x, h); }, bh);
+      CAPTURE(names[k]);
+      CAPTURE(y_rel);
+      CAPTURE(rg);
+      CAPTURE(rh);
+      for (const fd::Result& r : {rg, rh}) {
+        if (r.tolerance > 1e-3) {
+          ++beyond;
+          continue;
+        }
+        ++checked;
+        CHECK(r.ok());
+        CHECK(r.second_order());
+      }
+    }
+  }
+  MESSAGE("friction at tiny slips and degenerate bases: ", checked, " checks, ", beyond, " beyond");
+  // Beyond, per basis: the energy's differences at y = 1e-8 and 1e-6 eps_u, the gradient's at
+  // y = 1e-8 eps_u.
+  CHECK(beyond <= 3 * int(bases.size()));
+  CHECK(checked >= 15 * int(bases.size()));
+}
+
 TEST_CASE("friction: static and kinetic magnitude, from mu_s at the sticking speed to mu_k") {
   const double eps_u = 2e-3;
   const FrictionCoefficients c{0.6, 0.4}, one{0.5, 0.5};
@@ -378,7 +481,9 @@ TEST_CASE("friction: static and kinetic magnitude, from mu_s at the sticking spe
   }
   for (double joint : {eps_u, 2 * eps_u}) {
     const double below = joint * (1 - 1e-12), above = joint * (1 + 1e-12);
-    CHECK(friction_magnitude(below, c, eps_u).potential == doctest::Approx(friction_magnitude(above, c, eps_u).potential).epsilon(1e-10));
+    // Relative (the potential is ~1e-3): across the joint it moves by ~g 2e-12 of the joint.
+    CHECK(friction_magnitude(below, c, eps_u).potential ==
+          doctest::Approx(friction_magnitude(above, c, eps_u).potential).epsilon(1e-10).scale(0.0));
     CHECK(g(below, c) == doctest::Approx(g(above, c)).epsilon(1e-9));
   }
   // The projected 2 x 2 Hessian stays PSD where g' < 0.
@@ -467,14 +572,16 @@ TEST_CASE("friction: parallel and degenerate edge-edge contacts get a central co
   // Parallel edges overlapping on ea's parameter range [0.5, 1]: g1 = 0.75, eb's point below it.
   const Vec3 ea0(0, 0, 0), ea1(2, 0, 0), eb0(1, 0.5, 0.1), eb1(4, 0.5, 0.1);
   const Eigen::Vector2d g = edge_edge_closest_parameters(ea0, ea1, eb0, eb1);
-  CHECK(g(0) == doctest::Approx(0.75));
-  CHECK(g(1) == doctest::Approx(0.5 / 3.0));
+  // Binary fractions and one division: exact up to an ulp or two.
+  CHECK(g(0) == doctest::Approx(0.75).epsilon(1e-15));
+  CHECK(g(1) == doctest::Approx(0.5 / 3.0).epsilon(1e-15).scale(0.0));
   const FrictionBasis f = edge_edge_friction_basis(ea0, ea1, eb0, eb1);
-  CHECK(f.w.sum() == doctest::Approx(0.0).scale(1.0));
+  CHECK(std::abs(f.w.sum()) <= 1e-15);  // 1 - g1 + g1 - (1 - g2) - g2: a few roundings of O(1)
   const Vec3 r = (1 - g(0)) * ea0 + g(0) * ea1 - (1 - g(1)) * eb0 - g(1) * eb1;
   CHECK((f.P.transpose() * f.P - Eigen::Matrix2d::Identity()).norm() < 1e-14);
   CHECK((f.P.transpose() * r).norm() < 1e-14);  // the normal is the closest-point difference
-  CHECK((f.P.transpose() * Vec3::UnitX()).norm() == doctest::Approx(1.0));  // sliding along edges
+  // Sliding along the edges: x lies in the tangent plane, up to the basis' rounding.
+  CHECK((f.P.transpose() * Vec3::UnitX()).norm() == doctest::Approx(1.0).epsilon(1e-15));
   // Parallel, not overlapping: the nearest ends.
   const Eigen::Vector2d g2 =
       edge_edge_closest_parameters(ea0, ea1, Vec3(3, 0.5, 0.1), Vec3(5, 0.5, 0.1));
