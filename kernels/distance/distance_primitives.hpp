@@ -29,6 +29,8 @@
 #include <Eigen/Geometry>  // cross()
 #include <Eigen/LU>        // fixed-size inverse()
 
+#include <cmath>
+
 namespace nexdyn {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
@@ -49,6 +51,39 @@ namespace detail {
 // derivative used at the tie changes; point-point and point-edge contacts can then be merged
 // (engine/contact/barrier_potential.cpp).
 inline constexpr double kFeatureTie = 1e-12;
+
+// a b - c d to within about one ulp of the result (Kahan): the rounding error of c d is recovered
+// exactly by a fused multiply-add, so no cancellation is left when a b and c d nearly agree.
+inline double difference_of_products(double a, double b, double c, double d) {
+  const double cd = c * d;
+  const double cd_error = std::fma(-c, d, cd);  // cd - c d, exactly
+  return std::fma(a, b, -cd) + cd_error;
+}
+
+// u x v with every component accurate to about one ulp of itself, also for nearly parallel u and
+// v, whose plain cross product is only accurate to eps |u| |v| (relative eps / sin of the angle).
+inline Eigen::Vector3d accurate_cross(const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
+  return {difference_of_products(u.y(), v.z(), u.z(), v.y()),
+          difference_of_products(u.z(), v.x(), u.x(), v.z()),
+          difference_of_products(u.x(), v.y(), u.y(), v.x())};
+}
+
+// Coordinates (alpha, beta) of r = alpha u + beta v + gamma (u x v), for u and v not parallel: the
+// foot of a point on a triangle's plane in the edge basis, or the closest points of two lines.
+// Crossing r with v (or u) and projecting on n = u x v leaves one unknown each:
+//   alpha = (r x v) . n / |n|^2,   beta = (u x r) . n / |n|^2.
+// With n accurate to its own size, the error is about eps |r| / (|u| sin) for an angle theta
+// between u and v. Cramer's rule on the normal equations, (|v|^2 u.r - (u.v) v.r) / (|u|^2 |v|^2 -
+// (u.v)^2), loses eps |r| / (|u| sin^2) to cancellation in its numerator, and so does the triple
+// product with a plain n when gamma is comparable to |r|: enough to put the closest point of
+// edges 1e-6 rad from parallel on the wrong side of an edge's end, and to make the answer depend
+// on whether the compiler fuses multiply-adds.
+inline Eigen::Vector2d in_plane_coordinates(const Eigen::Vector3d& r, const Eigen::Vector3d& u,
+                                            const Eigen::Vector3d& v) {
+  const Eigen::Vector3d n = accurate_cross(u, v);
+  const double n2 = n.squaredNorm();
+  return {r.cross(v).dot(n) / n2, u.cross(r).dot(n) / n2};
+}
 
 // Minimiser of |X (w0 + B lambda)|^2 over lambda, and the pieces its derivatives need.
 template <int K, int M>

@@ -42,13 +42,9 @@ inline EdgeEdgeCase edge_edge_case(const Eigen::Vector3d& ea0, const Eigen::Vect
   const double c = eb.squaredNorm();
   const double det = ea.cross(eb).squaredNorm();  // = a c - b^2, without cancellation
   if (det > detail::kEdgesParallel * a * c) {
-    const Eigen::Vector3d w = ea0 - eb0;
-    const double b = ea.dot(eb);
-    const double d = ea.dot(w);
-    const double e = eb.dot(w);
-    // Stationarity: a s - b t + d = 0, -b s + c t - e = 0.
-    const double s = (b * e - c * d) / det;
-    const double t = (a * e - b * d) / det;
+    // Closest points ea0 + s ea and eb0 + t eb: eb0 - ea0 = s ea - t eb + (normal part).
+    const Eigen::Vector2d st = detail::in_plane_coordinates(eb0 - ea0, ea, eb);
+    const double s = st(0), t = -st(1);
     constexpr double tie = detail::kFeatureTie;
     if (s > tie && s < 1.0 - tie && t > tie && t < 1.0 - tie) return EdgeEdgeCase::ea_eb;
   }

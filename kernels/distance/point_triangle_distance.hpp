@@ -36,12 +36,8 @@ inline PointTriangleCase point_triangle_case(const Eigen::Vector3d& p, const Eig
   const double c = e2.squaredNorm();
   const double det = e1.cross(e2).squaredNorm();  // = a c - b^2, without cancellation
   if (det > detail::kTriangleDegenerate * a * c) {
-    const Eigen::Vector3d r = p - t0;
-    const double b = e1.dot(e2);
-    const double d1 = e1.dot(r);
-    const double d2 = e2.dot(r);
-    const double u = (c * d1 - b * d2) / det;
-    const double v = (a * d2 - b * d1) / det;
+    const Eigen::Vector2d uv = detail::in_plane_coordinates(p - t0, e1, e2);
+    const double u = uv(0), v = uv(1);
     constexpr double tie = detail::kFeatureTie;
     if (u > tie && v > tie && u + v < 1.0 - tie) return PointTriangleCase::p_t;
   }

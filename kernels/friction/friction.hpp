@@ -146,11 +146,7 @@ inline Eigen::Vector2d point_triangle_closest_parameters(const Eigen::Vector3d& 
   if (!(det > detail::kTriangleDegenerate * a * c)) {
     return {point_edge_closest_parameter(p, t0, t1), 0.0};
   }
-  const Eigen::Vector3d r = p - t0;
-  const double b = e1.dot(e2);
-  const double d1 = e1.dot(r);
-  const double d2 = e2.dot(r);
-  return {(c * d1 - b * d2) / det, (a * d2 - b * d1) / det};
+  return detail::in_plane_coordinates(p - t0, e1, e2);
 }
 
 // (g1, g2) with ea0 + g1 (ea1 - ea0) and eb0 + g2 (eb1 - eb0) the closest points of the two
@@ -172,8 +168,9 @@ inline Eigen::Vector2d edge_edge_closest_parameters(const Eigen::Vector3d& ea0,
   const double d = ea.dot(w);
   const double e = eb.dot(w);
   if (det > detail::kEdgesParallel * a * c) {
-    // Stationarity of |w + g1 ea - g2 eb|^2: a g1 - b g2 + d = 0, -b g1 + c g2 - e = 0.
-    return {(b * e - c * d) / det, (a * e - b * d) / det};
+    // eb0 - ea0 = g1 ea - g2 eb + (normal part).
+    const Eigen::Vector2d g = detail::in_plane_coordinates(-w, ea, eb);
+    return {g(0), -g(1)};
   }
   double g1 = 0.0;
   if (a > 0.0) {

@@ -932,6 +932,41 @@ TEST_CASE("distance: edge-edge per-case derivatives and reference values") {
   CHECK(beyond <= ill_checked / 20);
 }
 
+// The closest-feature dispatch of both edge-edge and point-triangle solves r = alpha u + beta v +
+// gamma (u x v) for (alpha, beta). Rounding r alone moves alpha by up to eps |r| / (|u| sin theta),
+// theta the angle between u and v; the triple-product solve with an accurate u x v stays within
+// that, where Cramer's rule on the normal equations (or the same triple products with a plainly
+// rounded u x v) loses up to eps |r| / (|u| sin^2 theta): 1e6 times the bound at theta = 1e-7 here,
+// and how an edge whose lines cross 1e-4 past its end came to be classified as crossing on
+// machines without fused multiply-add. Reference: Cramer's rule on the same double inputs in
+// binary128, whose eps / sin^2 is 1e-20 at theta = 1e-7. Measured worst: 0.6.
+TEST_CASE("distance: in-plane coordinates lose eps / sin of the angle, not eps / sin^2") {
+  using Quad = __float128;
+  auto dot = [](const Vec3& a, const Vec3& b) {
+    return Quad(a.x()) * Quad(b.x()) + Quad(a.y()) * Quad(b.y()) + Quad(a.z()) * Quad(b.z());
+  };
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> coefficient(-2.0, 2.0);
+  double worst = 0.0;  // error over eps |r| / sin(theta), unit u and v
+  for (double theta : {1e-1, 1e-3, 1e-5, 1e-7}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Eigen::Matrix3d R = random_rotation(rng);
+      const Vec3 u = R * Vec3(1, 0, 0);
+      const Vec3 v = R * Vec3(std::cos(theta), std::sin(theta), 0);
+      const Vec3 r = coefficient(rng) * u + coefficient(rng) * v +
+                     coefficient(rng) * (R * Vec3(0, 0, 1));
+      const Quad a = dot(u, u), b = dot(u, v), c = dot(v, v), d = dot(u, r), e = dot(v, r);
+      const Quad det = a * c - b * b;
+      const double alpha = double((c * d - b * e) / det), beta = double((a * e - b * d) / det);
+      const Eigen::Vector2d ab = detail::in_plane_coordinates(r, u, v);
+      const double scale = fd::kEps * r.norm() / std::sin(theta);
+      worst = std::max({worst, std::abs(ab(0) - alpha) / scale, std::abs(ab(1) - beta) / scale});
+    }
+  }
+  MESSAGE("in-plane coordinates: worst error ", worst, " eps |r| / sin(theta)");
+  CHECK(worst < 4.0);
+}
+
 TEST_CASE("distance: edge-edge parallel, nearly parallel, crossing and zero-length edges") {
   auto finite = [](const Vec3& a0, const Vec3& a1, const Vec3& b0, const Vec3& b1) {
     const double d = edge_edge_distance(a0, a1, b0, b1);
@@ -1151,6 +1186,7 @@ TEST_CASE("distance: barrier times edge-edge mollifier on nearly parallel edges 
         CAPTURE(theta);
         CAPTURE(sep);
         CAPTURE(name(e.c));
+        CHECK(e.c == (centre == 0.5 ? EdgeEdgeCase::ea_eb : EdgeEdgeCase::ea1_eb));
         const Stacked<4> s = stack<4>(x);
         const double q = edge_edge_cross_squarednorm(x[0], x[1], x[2], x[3]) / e.eps_x;
         CAPTURE(q);
