@@ -126,6 +126,8 @@ struct BarrierProblem {
   CubeGrid& g;
   std::unique_ptr<ElasticAssembly> elastic;
   std::unique_ptr<BarrierPotential> barrier;
+  std::vector<std::pair<int32_t, int32_t>> pattern_pairs;
+  uint64_t pattern_stamp = 0;
   std::unique_ptr<ContactPattern> pattern;
   std::vector<double> x, grad, elastic_values, values;
   double first_update_ms = 0.0;  // ContactPattern::update that builds the merged pattern
@@ -139,7 +141,8 @@ struct BarrierProblem {
     grad.assign(m.num_dofs(), 0.0);
     elastic_values.resize(elastic->pattern().nnz());
     elastic->gradient_hessian(x.data(), grad.data(), elastic_values.data());
-    pattern = std::make_unique<ContactPattern>(elastic->pattern());
+    pattern_pairs.clear();  // a fresh pattern: only the elastic part until the first update
+    pattern = std::make_unique<ContactPattern>(elastic->pattern(), pattern_pairs, pattern_stamp);
     barrier->assemble(x.data(), 1.0, true);
     const auto t0 = std::chrono::steady_clock::now();
     pattern->update(barrier->stencils(), barrier->slab_begin(), true);

@@ -27,6 +27,7 @@ using namespace nexdyn;
 struct Body {
   Scene scene;
   std::unique_ptr<ElasticAssembly> elastic;
+  StepHistory history;
   std::unique_ptr<IncrementalPotential> potential;
   std::vector<double> x, x_tilde, grad, values;
 
@@ -38,11 +39,11 @@ struct Body {
     scene = load_scene(file);
     const Model& model = scene.model;
     elastic = std::make_unique<ElasticAssembly>(model);
-    potential = std::make_unique<IncrementalPotential>(model, *elastic);
+    potential = std::make_unique<IncrementalPotential>(model, *elastic, history);
     x = model.rest_positions;
     for (int32_t v = 0; v < model.num_vertices; ++v) x[3 * v + 1] *= 0.95;  // squashed by 5%
     x_tilde = model.rest_positions;
-    potential->begin_step(x_tilde, 1e-4, 1e-4, true);
+    potential->begin_step(x_tilde, weights_context(1e-4, 1e-4, true));
     grad.resize(model.num_dofs());
     values.resize(potential->pattern().nnz());
     potential->gradient_hessian(x.data(), grad.data(), values.data());

@@ -37,6 +37,7 @@ double peak_resident_bytes() {
 struct Problem {
   Scene scene;
   std::unique_ptr<ElasticAssembly> elastic;
+  StepHistory history;
   std::unique_ptr<IncrementalPotential> potential;
   CholmodSolver cholmod;
   std::vector<double> x, x_tilde, grad, values, direction;
@@ -52,7 +53,7 @@ struct Problem {
     scene = load_scene(file);
     const Model& model = scene.model;
     elastic = std::make_unique<ElasticAssembly>(model);
-    potential = std::make_unique<IncrementalPotential>(model, *elastic);
+    potential = std::make_unique<IncrementalPotential>(model, *elastic, history);
     // A bent state: the bar sags by up to 2 cm, as after a few steps under gravity.
     x = model.rest_positions;
     for (int32_t v = 0; v < model.num_vertices; ++v) {
@@ -60,7 +61,7 @@ struct Problem {
       x[3 * v + 1] -= 0.02 * s * s;
     }
     x_tilde = model.rest_positions;
-    potential->begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
+    potential->begin_step(x_tilde, weights_context(2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true));
     grad.resize(model.num_dofs());
     direction.resize(model.num_dofs());
     values.resize(potential->pattern().nnz());

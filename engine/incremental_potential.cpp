@@ -12,11 +12,12 @@
 
 namespace nexdyn {
 
-IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic,
+IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
                                            BarrierPotential* contact, const JointSet* joints)
-    : model_(model), elastic_(elastic), contact_(contact), joints_(joints) {
+    : model_(model), elastic_(elastic), history_(history), contact_(contact), joints_(joints) {
   if (!contact_) return;
-  contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern());
+  contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern(), history.contact_pattern_pairs,
+                                                      history.contact_pattern_stamp);
   elastic_values_.resize(elastic_.pattern().nnz());
   bbox_diagonal_ = bodies_bbox_diagonal(model);
   double mass = 0.0;
@@ -27,6 +28,14 @@ IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& 
       ++free;
     }
   average_mass_ = free > 0 ? mass / free : 1.0;
+}
+
+void IncrementalPotential::begin_step(const std::vector<double>& x_tilde, const StepContext& ctx) {
+  x_tilde_ = &x_tilde;
+  scale_ = ctx.potential_scale;
+  contact_scale_ = ctx.contact_scale;
+  inertia_ = ctx.inertia ? 1.0 : 0.0;
+  if (contact_pattern_) contact_pattern_->sync();
 }
 
 double IncrementalPotential::inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const {
@@ -61,7 +70,7 @@ double IncrementalPotential::energy(const double* x) const {
     return inertia_gravity_energy(x, begin, end);
   }, 1024);
   return inertia + scale_ * (elastic + joints) +
-         contact_scale_ * (kappa_ * barrier + friction) + kinematic;
+         contact_scale_ * (history_.kappa * barrier + friction) + kinematic;
 }
 
 void IncrementalPotential::group_energy(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
@@ -89,7 +98,7 @@ void IncrementalPotential::group_energy(const double* x, const int32_t* group_of
       out[k] = kInf;  // an inverted tet or a touching pair (kappa may still be 0: no inf * 0)
       continue;
     }
-    out[k] += scale_ * (elastic[k] + joints[k]) + contact_scale_ * (kappa_ * barrier[k] + friction[k]);
+    out[k] += scale_ * (elastic[k] + joints[k]) + contact_scale_ * (history_.kappa * barrier[k] + friction[k]);
   }
 }
 
@@ -125,10 +134,10 @@ void IncrementalPotential::begin_solve(const double* x) {
   // step to step would change the barrier's stored energy under resting contact and pump energy
   // into a stack. So it is set at the first solve with contact (kappa_min until then) and after
   // that only raised by the adaptive rule.
-  if (!kappa_from_contact_) {
-    kappa_ = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
-                                       grad_energy, grad_barrier, kappa_max_);
-    kappa_from_contact_ = grad_barrier.squaredNorm() > 0.0;
+  if (!history_.kappa_from_contact) {
+    history_.kappa = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
+                                               grad_energy, grad_barrier, history_.kappa_max);
+    history_.kappa_from_contact = grad_barrier.squaredNorm() > 0.0;
   }
   prev_min_distance_ = contact_->min_squared_distance(x);
 }
@@ -177,7 +186,7 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   if (merge) {
     ProfileScope scope(profile_, StepPhase::barrier);
     const uint8_t* mask = subset ? subset->vertex_mask.data() : nullptr;
-    contact_->compute_derivatives(x, contact_scale_ * kappa_, true, mask);
+    contact_->compute_derivatives(x, contact_scale_ * history_.kappa, true, mask);
     if (with_friction) {
       ProfileScope friction_scope(profile_, StepPhase::friction);
       friction_->compute_derivatives(x, contact_scale_, true, mask);
@@ -233,7 +242,7 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
   friction_force_.assign(friction_ ? n : 0, 0.0);
   const double to_force = -1.0 / contact_scale_;
   if (contact_) {
-    contact_->assemble(x, contact_scale_ * kappa_, false);
+    contact_->assemble(x, contact_scale_ * history_.kappa, false);
     contact_->add_gradient_with_held(impulsive.data());
     for (int64_t i = 0; i < n; ++i) contact_force_[i] = impulsive[i] * to_force;
   }
@@ -267,38 +276,12 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
 bool IncrementalPotential::end_iteration(const double* x) {
   if (!contact_) return false;
   const double min_distance = contact_->min_squared_distance(x);
-  const double kappa = update_barrier_stiffness(prev_min_distance_, min_distance, kappa_max_, kappa_,
-                                                bbox_diagonal_);
+  const double kappa = update_barrier_stiffness(prev_min_distance_, min_distance, history_.kappa_max,
+                                                history_.kappa, bbox_diagonal_);
   prev_min_distance_ = min_distance;
-  const bool changed = kappa != kappa_;
-  kappa_ = kappa;
+  const bool changed = kappa != history_.kappa;
+  history_.kappa = kappa;
   return changed;
-}
-
-void IncrementalPotential::save(CheckpointWriter& out) const {
-  out.put(kappa_);
-  out.put(kappa_max_);
-  out.put<uint8_t>(kappa_from_contact_);
-  out.put_vector(contact_pattern_ ? contact_pattern_->flat_contact_pairs() : std::vector<int32_t>{});
-}
-
-void IncrementalPotential::restore(CheckpointReader& in) {
-  kappa_ = in.get<double>();
-  kappa_max_ = in.get<double>();
-  kappa_from_contact_ = in.get<uint8_t>() != 0;
-  if (!(std::isfinite(kappa_) && kappa_ >= 0.0 && std::isfinite(kappa_max_) && kappa_max_ >= 0.0))
-    in.fail("barrier stiffness is not a finite number >= 0");
-  const std::vector<int32_t> pairs = in.get_vector<int32_t>();
-  if (pairs.size() % 2 != 0) in.fail("odd number of contact pattern ids");
-  if (!contact_pattern_) {
-    if (!pairs.empty()) in.fail("contact pattern pairs for a scene without contact");
-    return;
-  }
-  try {
-    contact_pattern_->restore_pairs(pairs);
-  } catch (const std::invalid_argument& e) {
-    in.fail(e.what());
-  }
 }
 
 }  // namespace nexdyn

@@ -43,8 +43,9 @@
 #include "engine/joints.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/model.hpp"
-#include "engine/output/checkpoint_file.hpp"
 #include "engine/solver/contact_pattern.hpp"
+#include "engine/step_context.hpp"
+#include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
 
 #include <memory>
@@ -55,22 +56,19 @@ namespace nexdyn {
 class IncrementalPotential {
  public:
   // contact and joints may be null (none in the scene). The joints' constant Hessian is in the
-  // elastic assembly's coupling slabs (engine/joints.hpp).
-  IncrementalPotential(const Model& model, ElasticAssembly& elastic, BarrierPotential* contact = nullptr,
-                       const JointSet* joints = nullptr);
+  // elastic assembly's coupling slabs (engine/joints.hpp). The barrier stiffness and the contact
+  // pattern's pairs live in `history`, which must outlive the potential.
+  IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
+                       BarrierPotential* contact = nullptr, const JointSet* joints = nullptr);
   // Lagged friction over the contacts (null: frictionless), weighted like the barrier by s_c.
   void set_friction(FrictionPotential* friction) { friction_ = friction; }
   // Kinematic vertices pulled to their targets (engine/kinematic_targets.hpp; null: none). Their
   // augmented Lagrangian is added unscaled, next to the inertia it is measured against.
   void set_kinematic(const KinematicTargets* kinematic) { kinematic_ = kinematic; }
 
-  // Fixes x_tilde, the potential scale s and whether inertia is present for the coming solve.
-  void begin_step(const std::vector<double>& x_tilde, double scale, double contact_scale, bool inertia) {
-    x_tilde_ = &x_tilde;
-    scale_ = scale;
-    contact_scale_ = contact_scale;
-    inertia_ = inertia ? 1.0 : 0.0;
-  }
+  // Fixes x_tilde and the attempt's weights (s, s_c, whether inertia is present) for the coming
+  // solves, and brings the contact pattern to the history's pairs.
+  void begin_step(const std::vector<double>& x_tilde, const StepContext& ctx);
 
   // Times elastic and barrier assembly into `profile` (null: no timing).
   void set_profile(StepProfile* profile) { profile_ = profile; }
@@ -118,7 +116,7 @@ class IncrementalPotential {
   // The tets' and joints' part of the pattern alone (constant for a run).
   const CscPattern& elastic_pattern() const { return elastic_.pattern(); }
 
-  double barrier_stiffness() const { return kappa_; }
+  double barrier_stiffness() const { return history_.kappa; }
   // At the solution x of a step: the acceleration that the impulsive forces (contact
   // f_c = -kappa grad B, friction f_f = -grad D and the joint forces) put into a_{n+1} through
   // update_implicit, delta = (s_c / s) M^-1 f on free vertices (0 on held ones), which the step
@@ -130,17 +128,13 @@ class IncrementalPotential {
   const std::vector<double>& joint_force() const { return joint_force_; }        // (3n) [N], or empty
   BarrierPotential* contact() const { return contact_; }
 
-  // What carries over from step to step besides the State: the barrier stiffness and the
-  // contact pattern (engine/output/checkpoint_file.hpp).
-  void save(CheckpointWriter& out) const;
-  void restore(CheckpointReader& in);
-
  private:
   // Inertia and gravity energy of vertices [begin, end).
   double inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const;
 
   const Model& model_;
   ElasticAssembly& elastic_;
+  StepHistory& history_;  // kappa, kappa_max, kappa_from_contact
   BarrierPotential* contact_ = nullptr;
   const JointSet* joints_ = nullptr;
   FrictionPotential* friction_ = nullptr;
@@ -160,11 +154,8 @@ class IncrementalPotential {
   double scale_ = 1.0;
   double contact_scale_ = 1.0;
   double inertia_ = 1.0;
-  // Adaptive barrier stiffness (IPC supplemental sec. 3), kept from step to step.
-  double kappa_ = 0.0, kappa_max_ = 0.0;
-  bool kappa_from_contact_ = false;  // kappa_ was balanced against a contact gradient
   double bbox_diagonal_ = 1.0, average_mass_ = 0.0;
-  double prev_min_distance_ = 0.0;  // squared
+  double prev_min_distance_ = 0.0;  // squared, at the solve's last accepted point
 };
 
 }  // namespace nexdyn

@@ -27,9 +27,10 @@ bool cross_group(const Joint& joint, int g) { return joint.type == JointType::ba
 
 }  // namespace
 
-JointSet::JointSet(const Model& model)
+JointSet::JointSet(const Model& model, std::vector<double>& multipliers)
     : joints_(model.joints), mass_(model.mass), stiffness_(model.joints.size(), 0.0),
-      multiplier_(model.joints.size(), Eigen::Vector3d::Zero()) {
+      multiplier_(multipliers) {
+  multiplier_.assign(3 * joints_.size(), 0.0);
   for (const Joint& joint : joints_)
     for (int g = 0; g < group_count(joint); ++g)
       for (int t : group_terms(joint, g)) groups_.push_back(joint.vertex[t]);
@@ -55,17 +56,13 @@ void JointSet::write_slabs(double* slabs) const {
   }
 }
 
-void JointSet::set_stiffness(double scale, double ratio, double* slabs) {
+void JointSet::set_stiffness(double weight, double scale, double ratio, double stiffening, double* slabs) {
+  weight_ = weight;
   for (size_t j = 0; j < joints_.size(); ++j) {
     double mass = 0.0;
     for (int k = 0; k < joints_[j].count; ++k) mass += mass_[joints_[j].vertex[k]];
-    stiffness_[j] = ratio * mass / scale;
+    stiffness_[j] = ratio * mass / scale * stiffening;
   }
-  write_slabs(slabs);
-}
-
-void JointSet::stiffen(double factor, double* slabs) {
-  for (double& k : stiffness_) k *= factor;
   write_slabs(slabs);
 }
 
@@ -87,7 +84,7 @@ double JointSet::energy(const double* x) const {
   double sum = 0.0;
   for (int64_t j = 0; j < size(); ++j) {
     const Eigen::Vector3d c = violation(x, j);
-    sum += 0.5 * stiffness_[j] * c.squaredNorm() - multiplier_[j].dot(c);
+    sum += 0.5 * stiffness_[j] * c.squaredNorm() - multiplier(j).dot(c);
   }
   return weight_ * sum;
 }
@@ -99,12 +96,12 @@ void JointSet::group_energy(const double* x, const int32_t* group_of_vertex, dou
     for (int k = 0; k < joint.count && g < 0; ++k) g = group_of_vertex[joint.vertex[k]];
     if (g < 0) continue;
     const Eigen::Vector3d c = violation(x, j);
-    total[g] += weight_ * (0.5 * stiffness_[j] * c.squaredNorm() - multiplier_[j].dot(c));
+    total[g] += weight_ * (0.5 * stiffness_[j] * c.squaredNorm() - multiplier(j).dot(c));
   }
 }
 
 Eigen::Vector3d JointSet::force(const double* x, int64_t j) const {
-  return multiplier_[j] - stiffness_[j] * violation(x, j);
+  return multiplier(j) - stiffness_[j] * violation(x, j);
 }
 
 void JointSet::add_gradient(const double* x, double* grad) const {
@@ -117,7 +114,7 @@ void JointSet::add_gradient(const double* x, double* grad) const {
 }
 
 void JointSet::update_multipliers(const double* x) {
-  for (int64_t j = 0; j < size(); ++j) multiplier_[j] = force(x, j);
+  for (int64_t j = 0; j < size(); ++j) multiplier(j) = force(x, j);
 }
 
 void JointSet::apply(const double* field, double* out) const {
@@ -137,23 +134,6 @@ void JointSet::apply_transpose(const double* per_joint, double* out) const {
     for (int k = 0; k < joint.count; ++k)
       Eigen::Vector3d::Map(out + 3 * int64_t{joint.vertex[k]}) += joint.coefficient[k] * value;
   }
-}
-
-void JointSet::save(CheckpointWriter& out) const {
-  out.put(weight_);
-  out.put_vector(stiffness_);
-  std::vector<double> multipliers(3 * multiplier_.size());
-  for (size_t j = 0; j < multiplier_.size(); ++j) Eigen::Vector3d::Map(&multipliers[3 * j]) = multiplier_[j];
-  out.put_vector(multipliers);
-}
-
-void JointSet::restore(CheckpointReader& in, double* slabs) {
-  const int64_t num = static_cast<int64_t>(joints_.size());
-  weight_ = in.get<double>();
-  stiffness_ = in.get_vector<double>(num);
-  const std::vector<double> multipliers = in.get_vector<double>(3 * num);
-  for (int64_t j = 0; j < num; ++j) multiplier_[j] = Eigen::Vector3d::Map(&multipliers[3 * j]);
-  if (num > 0) write_slabs(slabs);
 }
 
 }  // namespace nexdyn

@@ -7,8 +7,8 @@
 // and Newton minimises it with everything else; between solves the multiplier is updated,
 // lambda_j <- lambda_j - k_j c_j, until every |c_j| is below the tolerance (Nocedal & Wright,
 // ch. 17). At a minimiser grad Psi = J^T (lambda - k c), so lambda - k c is the joint's force
-// [N] on the body; the multiplier is kept from step to step, so a joint whose force changes
-// slowly needs one solve per step. Why not a penalty alone: k large enough for 1e-6 accuracy
+// [N] on the body; the multiplier is kept from step to step (StepHistory::joint_multipliers), so a
+// joint whose force changes slowly needs one solve per step. Why not a penalty alone: k large enough for 1e-6 accuracy
 // would swamp the Newton matrix; why not hard constraints: they would need a saddle-point solve
 // instead of the Cholesky factorisation the rest of the step uses.
 //
@@ -19,7 +19,6 @@
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/output/checkpoint_file.hpp"
 
 #include <Eigen/Core>
 
@@ -30,7 +29,9 @@ namespace nexdyn {
 
 class JointSet {
  public:
-  explicit JointSet(const Model& model);
+  // The multipliers live in `multipliers` (StepHistory::joint_multipliers, 3 per joint), which
+  // is sized here and must outlive the set.
+  JointSet(const Model& model, std::vector<double>& multipliers);
 
   bool empty() const { return joints_.empty(); }
   int64_t size() const { return static_cast<int64_t>(joints_.size()); }
@@ -38,17 +39,14 @@ class JointSet {
   // (num_groups x 4) vertex ids of the coupling groups, for ElasticAssembly.
   const std::vector<int32_t>& coupling_groups() const { return groups_; }
 
-  // Sets k_j = ratio * m_j / scale, with m_j the mass of the joint's vertices and scale the
-  // step's potential scale s (E = inertia + s Psi), so that s k_j = ratio m_j: the joint is
-  // `ratio` times stiffer than the inertia of its vertices. Writes the slabs of k J^T J
-  // (num_groups x 144, column-major 12x12) into `slabs`.
-  void set_stiffness(double scale, double ratio, double* slabs);
-  // Multiplies every k_j by `factor` and rewrites the slabs.
-  void stiffen(double factor, double* slabs);
-  // A weight w on Phi (energy, gradient and slabs; set before set_stiffness): 1 / gamma under
-  // Newmark, where joint forces act as end-of-step impulses like contact forces
-  // (incremental_potential.hpp).
-  void set_weight(double weight) { weight_ = weight; }
+  // Sets the weight w on Phi (energy, gradient and slabs): 1 / gamma under Newmark, where joint
+  // forces act as end-of-step impulses like contact forces (incremental_potential.hpp); and
+  // k_j = ratio * m_j / scale * stiffening, with m_j the mass of the joint's vertices and scale
+  // the attempt's potential scale s (E = inertia + s Psi), so that s k_j = ratio m_j times the
+  // stiffenings so far: the joint is `ratio` times stiffer than the inertia of its vertices.
+  // Writes the slabs of w k J^T J (num_groups x 144, column-major 12x12) into `slabs`. Called
+  // for every attempt at a step, from its StepContext.
+  void set_stiffness(double weight, double scale, double ratio, double stiffening, double* slabs);
   double weight() const { return weight_; }
 
   // c_j(x) of joint j.
@@ -64,11 +62,7 @@ class JointSet {
   void add_gradient(const double* x, double* grad) const;
   // lambda_j <- lambda_j - k_j c_j(x).
   void update_multipliers(const double* x);
-  void set_multiplier(int64_t j, const Eigen::Vector3d& lambda) { multiplier_[j] = lambda; }
-
-  // Stiffnesses and multipliers for a checkpoint; restore also rewrites the coupling slabs.
-  void save(CheckpointWriter& out) const;
-  void restore(CheckpointReader& in, double* slabs);
+  void set_multiplier(int64_t j, const Eigen::Vector3d& lambda) { multiplier(j) = lambda; }
 
   // Force of joint j on its vertices at a minimiser, lambda_j - k_j c_j(x) [N]; for tests.
   Eigen::Vector3d force(const double* x, int64_t j) const;
@@ -80,12 +74,16 @@ class JointSet {
 
  private:
   void write_slabs(double* slabs) const;
+  Eigen::Map<Eigen::Vector3d> multiplier(int64_t j) { return Eigen::Vector3d::Map(&multiplier_[3 * j]); }
+  Eigen::Map<const Eigen::Vector3d> multiplier(int64_t j) const {
+    return Eigen::Map<const Eigen::Vector3d>(&multiplier_[3 * j]);
+  }
 
   const std::vector<Joint>& joints_;
   const std::vector<double>& mass_;
   std::vector<int32_t> groups_;
-  std::vector<double> stiffness_;               // (num_joints) k_j [N/m]
-  std::vector<Eigen::Vector3d> multiplier_;     // (num_joints) lambda_j [N]
+  std::vector<double> stiffness_;               // (num_joints) k_j [N/m] of the attempt under way
+  std::vector<double>& multiplier_;             // (num_joints x 3) lambda_j [N], in the history
   double weight_ = 1.0;
 };
 

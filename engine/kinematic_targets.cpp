@@ -8,7 +8,8 @@
 
 namespace nexdyn {
 
-KinematicTargets::KinematicTargets(const Model& model) : num_dofs_(model.num_dofs()) {
+KinematicTargets::KinematicTargets(const Model& model, StepHistory& history)
+    : num_dofs_(model.num_dofs()), history_(history) {
   double free_mass = 0.0;
   int64_t free = 0;
   for (int32_t v = 0; v < model.num_vertices; ++v) {
@@ -23,7 +24,7 @@ KinematicTargets::KinematicTargets(const Model& model) : num_dofs_(model.num_dof
   for (int32_t v : vertices_) mass_.push_back(model.mass[v] > 0.0 ? model.mass[v] : mean);
   stiffness_.assign(vertices_.size(), 0.0);
   target_.assign(3 * vertices_.size(), 0.0);
-  lambda_.assign(3 * vertices_.size(), 0.0);
+  history_.kinematic_multipliers.assign(3 * vertices_.size(), 0.0);
 }
 
 void KinematicTargets::set_targets(const std::vector<double>& x_target) {
@@ -31,13 +32,19 @@ void KinematicTargets::set_targets(const std::vector<double>& x_target) {
     for (int d = 0; d < 3; ++d) target_[3 * i + d] = x_target[3 * size_t(vertices_[i]) + d];
 }
 
-void KinematicTargets::set_stiffness(double ratio, double scale) {
-  scale_ = scale;
-  for (size_t i = 0; i < vertices_.size(); ++i) stiffness_[i] = ratio * mass_[i];
+void KinematicTargets::set_stiffness(double ratio) {
+  // Stiffenings are powers of two: (ratio m) times their product is the number the successive
+  // stiffenings gave.
+  for (size_t i = 0; i < vertices_.size(); ++i) stiffness_[i] = ratio * mass_[i] * history_.kinematic_stiffening;
 }
 
-void KinematicTargets::stiffen(double factor) {
-  for (double& k : stiffness_) k *= factor;
+void KinematicTargets::begin_attempt(double ratio, double scale) {
+  set_stiffness(ratio);
+  if (scale != history_.kinematic_multiplier_scale) {
+    const double factor = scale / history_.kinematic_multiplier_scale;
+    for (double& lambda : history_.kinematic_multipliers) lambda *= factor;
+    history_.kinematic_multiplier_scale = scale;
+  }
 }
 
 double KinematicTargets::max_violation(const double* x) const {
@@ -58,7 +65,7 @@ double KinematicTargets::energy(const double* x) const {
   for (size_t i = 0; i < vertices_.size(); ++i)
     for (int d = 0; d < 3; ++d) {
       const double c = x[3 * size_t(vertices_[i]) + d] - target_[3 * i + d];
-      sum += (0.5 * stiffness_[i] * c - lambda_[3 * i + d]) * c;
+      sum += (0.5 * stiffness_[i] * c - history_.kinematic_multipliers[3 * i + d]) * c;
     }
   return sum;
 }
@@ -69,7 +76,7 @@ void KinematicTargets::group_energy(const double* x, const int32_t* group_of_ver
     if (g < 0) continue;
     for (int d = 0; d < 3; ++d) {
       const double c = x[3 * size_t(vertices_[i]) + d] - target_[3 * i + d];
-      total[g] += (0.5 * stiffness_[i] * c - lambda_[3 * i + d]) * c;
+      total[g] += (0.5 * stiffness_[i] * c - history_.kinematic_multipliers[3 * i + d]) * c;
     }
   }
 }
@@ -78,7 +85,7 @@ void KinematicTargets::add_gradient(const double* x, double* grad) const {
   for (size_t i = 0; i < vertices_.size(); ++i)
     for (int d = 0; d < 3; ++d) {
       const size_t dof = 3 * size_t(vertices_[i]) + d;
-      grad[dof] += stiffness_[i] * (x[dof] - target_[3 * i + d]) - lambda_[3 * i + d];
+      grad[dof] += stiffness_[i] * (x[dof] - target_[3 * i + d]) - history_.kinematic_multipliers[3 * i + d];
     }
 }
 
@@ -90,13 +97,14 @@ void KinematicTargets::add_hessian_diagonal(const CscPattern& pattern, double* v
 void KinematicTargets::update_multipliers(const double* x) {
   for (size_t i = 0; i < vertices_.size(); ++i)
     for (int d = 0; d < 3; ++d)
-      lambda_[3 * i + d] -= stiffness_[i] * (x[3 * size_t(vertices_[i]) + d] - target_[3 * i + d]);
+      history_.kinematic_multipliers[3 * i + d] -= stiffness_[i] * (x[3 * size_t(vertices_[i]) + d] - target_[3 * i + d]);
 }
 
 Eigen::Vector3d KinematicTargets::total_force() const {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < vertices_.size(); ++i) sum += Eigen::Vector3d::Map(&lambda_[3 * i]);
-  return sum / scale_;
+  for (size_t i = 0; i < vertices_.size(); ++i)
+    sum += Eigen::Vector3d::Map(&history_.kinematic_multipliers[3 * i]);
+  return sum / history_.kinematic_multiplier_scale;
 }
 
 void KinematicTargets::motion_to_targets(const double* x, double* p) const {
@@ -106,19 +114,6 @@ void KinematicTargets::motion_to_targets(const double* x, double* p) const {
       const size_t dof = 3 * size_t(vertices_[i]) + d;
       p[dof] = target_[3 * i + d] - x[dof];
     }
-}
-
-void KinematicTargets::save(CheckpointWriter& out) const {
-  out.put(scale_);
-  out.put_vector(stiffness_);
-  out.put_vector(lambda_);
-}
-
-void KinematicTargets::restore(CheckpointReader& in) {
-  const int64_t num = static_cast<int64_t>(vertices_.size());
-  scale_ = in.get<double>();
-  stiffness_ = in.get_vector<double>(num);
-  lambda_ = in.get_vector<double>(3 * num);
 }
 
 }  // namespace nexdyn

@@ -8,8 +8,8 @@
 //   Phi(x) = sum_i k_i / 2 |x_i - t_i|^2 - lambda_i . (x_i - t_i),   t_i: target at t_{n+1},
 // and between Newton solves lambda_i <- lambda_i - k_i (x_i - t_i) until every |x_i - t_i| is
 // below the tolerance (as for joints, engine/joints.hpp: lambda - k (x - t) is the force that
-// holds the vertex on its path, and it is kept from step to step, so steady pushing needs one
-// solve per step). At the end of the step the vertices are set exactly to their targets, after
+// holds the vertex on its path, and it is kept from step to step in StepHistory, so steady pushing
+// needs one solve per step). At the end of the step the vertices are set exactly to their targets, after
 // a CCD check of that last, tiny move.
 //
 // k_i = ratio m_i, stiffer than the vertex's inertia by `ratio`; obstacle vertices have no mass
@@ -17,7 +17,7 @@
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/output/checkpoint_file.hpp"
+#include "engine/step_history.hpp"
 #include "engine/solver/hessian_pattern.hpp"
 
 #include <Eigen/Core>
@@ -29,20 +29,21 @@ namespace nexdyn {
 
 class KinematicTargets {
  public:
-  explicit KinematicTargets(const Model& model);
+  // The multipliers live in `history` (kinematic_multipliers, sized here; their scale and the
+  // stiffening too), which must outlive the targets.
+  KinematicTargets(const Model& model, StepHistory& history);
   bool empty() const { return vertices_.empty(); }
   const std::vector<int32_t>& vertices() const { return vertices_; }
 
   // The targets of the coming step: the kinematic vertices' entries of x_target (3 per vertex of
   // the model).
   void set_targets(const std::vector<double>& x_target);
-  // k_i = ratio * m_i; stiffen multiplies every k_i by factor. `scale` is the step's potential
-  // scale s (E = inertia + s Psi), which turns the multipliers into forces.
-  void set_stiffness(double ratio, double scale);
-  void stiffen(double factor);
-  // Stiffnesses and multipliers for a checkpoint.
-  void save(CheckpointWriter& out) const;
-  void restore(CheckpointReader& in);
+  // For an attempt at a step whose potential scale is `scale` (E = inertia + s Psi): k_i =
+  // ratio * m_i times the history's stiffening, and the multipliers, lambda = s f, brought to
+  // this s if they were accumulated under another (a retried step's halves: by 1/4, exactly).
+  void begin_attempt(double ratio, double scale);
+  // k_i = ratio * m_i times the history's stiffening (after it changed).
+  void set_stiffness(double ratio);
 
   // max_i |x_i - t_i| [m].
   double max_violation(const double* x) const;
@@ -54,8 +55,8 @@ class KinematicTargets {
   void add_hessian_diagonal(const CscPattern& pattern, double* values) const;
   // lambda_i <- lambda_i - k_i (x_i - t_i).
   void update_multipliers(const double* x);
-  // The summed multipliers over s [N]: after a step, the force that kept the kinematic vertices
-  // on their paths (for a wall pushing a body: the push, e.g. the friction it overcomes).
+  // The summed multipliers over their s [N]: after a step, the force that kept the kinematic
+  // vertices on their paths (for a wall pushing a body: the push, e.g. the friction it overcomes).
   Eigen::Vector3d total_force() const;
   // p = t - x on the kinematic vertices, 0 elsewhere (p has 3 entries per model vertex).
   void motion_to_targets(const double* x, double* p) const;
@@ -64,10 +65,9 @@ class KinematicTargets {
   int64_t num_dofs_ = 0;           // of the model
   std::vector<int32_t> vertices_;  // (num) model vertex ids, increasing
   std::vector<double> mass_;       // (num) m_i behind k_i [kg]
-  std::vector<double> stiffness_;  // (num) k_i [N/m]
+  std::vector<double> stiffness_;  // (num) k_i [N/m] of the attempt under way
   std::vector<double> target_;     // (num x 3) t_i [m]
-  std::vector<double> lambda_;     // (num x 3) [N s]: force times the potential scale
-  double scale_ = 1.0;             // s
+  StepHistory& history_;           // lambda_i: kinematic_multipliers, under kinematic_multiplier_scale
 };
 
 }  // namespace nexdyn

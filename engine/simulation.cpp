@@ -1,6 +1,7 @@
-// The stages of a time step (see simulation.hpp).
+// The stages of a time step, in the order Simulation::attempt runs them (see simulation.hpp).
 #include "engine/simulation.hpp"
 
+#include "engine/output/step_checkpoint.hpp"
 #include "engine/parallel.hpp"
 
 #include <Eigen/Geometry>
@@ -58,16 +59,13 @@ std::unique_ptr<FrictionPotential> make_friction(const Scene& scene) {
 }  // namespace
 
 Simulation::Simulation(const Scene& scene)
-    : scene_(scene), model_(scene.model), state_(scene.initial), joints_(scene.model),
+    : scene_(scene), model_(scene.model), state_(scene.initial), joints_(scene.model, history_.joint_multipliers),
       elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
-      friction_(make_friction(scene)), kinematic_(scene.model),
-      potential_(scene.model, elastic_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
+      friction_(make_friction(scene)), kinematic_(scene.model, history_),
+      potential_(scene.model, elastic_, history_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
   potential_.set_profile(&profile_);
   potential_.set_friction(friction_.get());
-  if (!kinematic_.empty()) {
-    kinematic_.set_stiffness(kKinematicStiffnessRatio, scene.time.integrator.potential_scale(scene.time.dt));
-    potential_.set_kinematic(&kinematic_);
-  }
+  if (!kinematic_.empty()) potential_.set_kinematic(&kinematic_);
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
@@ -95,10 +93,387 @@ Simulation::Simulation(const Scene& scene)
   // Bruls' a_0 = q''_0: the positions and velocities stay second order).
   state_.a_bar = state_.a;
   StepStats start;
-  measure(start);
-  energy_before_ = start.total_energy;
-  energy_scale_ = energies_now().in_motion;
+  measure_step(start);
+  history_.energy_before = start.total_energy;
+  history_.energy_scale = energies_now().in_motion;
 }
+
+// ---- the step -----------------------------------------------------------------------------
+
+StepOutcome Simulation::step() {
+  const auto start = std::chrono::steady_clock::now();
+  int iterations = 0, retries = 0;
+  const double t_next = state_.time + scene_.time.dt;
+  balance_ = {};
+  stats_.guarded_steps = 0;
+  energy_now_ = history_.energy_before;
+  StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
+  stats_.retries = retries;
+  if (outcome.status != StepStatus::ok) return outcome;
+  state_.time = t_next;
+  ++state_.step;
+
+  stats_.step = state_.step;
+  stats_.time = state_.time;
+  stats_.newton_iterations = iterations;
+  {
+    ProfileScope scope(&profile_, StepPhase::measure);
+    measure_step(stats_);
+    // What the named terms do not explain is the time integration's own doing.
+    balance_.integrator_energy = (stats_.total_energy - history_.energy_before) - balance_.boundary_work +
+                                 balance_.friction_dissipated - balance_.kappa_energy;
+    stats_.balance = balance_;
+    history_.energy_before = stats_.total_energy;
+  }
+  stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, int& iterations, int& retries) {
+  const int halvings = scene_.solver.substep_halvings;
+  // What to go back to if this attempt fails: the State and the StepHistory, nothing else.
+  const State state_before = state_;
+  const StepHistory history_before = history_;
+  const EnergyBalance balance_before = balance_;
+  const double energy_start = energy_now_;
+  auto go_back = [&] {
+    state_ = state_before;
+    history_ = history_before;
+    drop_caches();
+    balance_ = balance_before;
+    energy_now_ = energy_start;
+  };
+  const double t_start = state_.time;
+  StepOutcome outcome = attempt(dt, t_next, level, iterations);
+  if (outcome.status == StepStatus::ok && guard_energy(balance_before)) {
+    // The integration would have created energy: the same interval again with implicit Euler.
+    go_back();
+    force_euler_ = true;
+    outcome = attempt(dt, t_next, level, iterations);
+    force_euler_ = false;
+    if (outcome.status == StepStatus::ok) {
+      ++stats_.guarded_steps;
+      guard_energy(balance_before);
+    }
+  }
+  if (outcome.status == StepStatus::ok) return outcome;
+  go_back();
+  if (level == halvings) {
+    if (halvings == 0) return outcome;
+    char where[160];
+    std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
+                  halvings, halvings == 1 ? "" : "s", dt, t_start);
+    outcome.message += where;
+    return outcome;
+  }
+  // Two steps of half the size; each may split again. If either fails for good, the state goes
+  // back to where this interval started.
+  ++retries;
+  const double t_mid = t_start + 0.5 * (t_next - t_start);
+  outcome = advance_or_split(t_mid - t_start, t_mid, level + 1, iterations, retries);
+  if (outcome.status == StepStatus::ok) {
+    state_.time = t_mid;
+    outcome = advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
+  }
+  if (outcome.status != StepStatus::ok) go_back();
+  return outcome;
+}
+
+// One attempt at the interval [state_.time, t_next]: the stage list.
+StepOutcome Simulation::attempt(double dt, double t_next, int level, int& iterations) {
+  if (level == fail_level_) return {StepStatus::max_iterations, "failed on purpose (test seam)"};
+  const StepContext ctx = choose_scheme(dt, t_next, level);
+  const double kappa_before = history_.kappa;
+  const double held_kinetic_before = held_kinetic_energy(model_, state_.v);
+  predict_x_tilde(*ctx.scheme, ctx.dt, state_.x, state_.v, state_.a, state_.a_bar, state_.x_tilde);
+  const StepOutcome outcome = ctx.scheme->is_explicit() ? explicit_update(ctx) : implicit_solve(ctx, iterations);
+  if (outcome.status != StepStatus::ok) return outcome;
+  account_energy(state_.x, x_next_, kappa_before);
+  finish(ctx, held_kinetic_before);
+  return outcome;
+}
+
+StepContext Simulation::choose_scheme(double dt, double t_next, int level) {
+  static const IntegratorParams kEuler = *integrator_preset("implicit_euler");
+  const IntegratorParams& scene_scheme = scene_.time.integrator;
+  const IntegratorParams* scheme = &scene_scheme;
+  if (force_euler_) {
+    scheme = &kEuler;
+  } else if (contact_ && history_.contact_memory.empty() && scene_scheme.contact_memory_scale(dt) != 0.0) {
+    // No contact force of a step before this one to remember: the first step, or the first after
+    // a checkpoint written without it. Contacts already touching at x_n would then be taken for
+    // new ones, and a body resting on a slope would be kicked by the difference; implicit Euler,
+    // whose contact weight is its own steady one, takes this step instead and leaves the memory
+    // for the next. Without touching contacts the memory is zero.
+    contact_->find_candidates(state_.x.data(), nullptr);
+    if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat())
+      scheme = &kEuler;
+    else
+      history_.contact_memory.assign(model_.num_dofs(), 0.0);
+  }
+  last_attempt_euler_ = scheme->is_implicit_euler();
+  return make_step_context(*scheme, state_.time, dt, t_next, level);
+}
+
+StepOutcome Simulation::explicit_update(const StepContext& ctx) {
+  x_next_ = state_.x_tilde;
+  prescribe(ctx.t_end, x_next_, nullptr, nullptr, nullptr);
+  a_next_ = state_.a;  // prescribed vertices keep theirs until finish()
+  if (!explicit_acceleration(x_next_, a_next_))
+    return {StepStatus::non_finite, "non-finite forces after the explicit update (the step is above the "
+                                    "stability limit or a tet inverted)"};
+  update_explicit(*ctx.scheme, ctx.dt, a_next_, state_.v, state_.a, state_.a_bar);
+  return {};
+}
+
+StepOutcome Simulation::implicit_solve(const StepContext& ctx, int& iterations) {
+  prepare_terms(ctx);
+  const StepOutcome outcome = start_point(ctx);
+  if (outcome.status != StepStatus::ok) return outcome;
+  const NewtonResult result = solve_with_friction(ctx, iterations);
+  if (result.status != StepStatus::ok) return {result.status, result.message};
+  update_after_solve(ctx);
+  return outcome;
+}
+
+void Simulation::prepare_terms(const StepContext& ctx) {
+  if (!newton_) {
+    newton_ = std::make_unique<NewtonSolver>(model_, potential_);
+    newton_->set_profile(&profile_);
+  }
+  potential_.begin_step(state_.x_tilde, ctx);
+  // The start-of-step contact force's part of the step: x_tilde += (alpha - r) h^2 M^-1 f_n.
+  const std::vector<double>& memory = history_.contact_memory;
+  if (contact_ && ctx.contact_memory_scale != 0.0 && !memory.empty()) {
+    for (int32_t v = 0; v < model_.num_vertices; ++v) {
+      if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
+      for (int d = 0; d < 3; ++d)
+        state_.x_tilde[3 * v + d] += ctx.contact_memory_scale * memory[3 * v + d] / model_.mass[v];
+    }
+  }
+  // The augmented Lagrangians' stiffness follows the scene's scheme at this dt (and its
+  // multipliers are forces times that scheme's s), whichever scheme takes the attempt.
+  const double scene_scale = scene_.time.integrator.potential_scale(ctx.dt);
+  if (!kinematic_.empty()) {
+    kinematic_.begin_attempt(kKinematicStiffnessRatio, scene_scale);
+    std::vector<double>& target = a_next_;
+    target = state_.x;
+    prescribe(ctx.t_end, target, nullptr, nullptr, nullptr);
+    kinematic_.set_targets(target);
+    if (kinematic_on_target_) newton_->hold(kinematic_.vertices(), false);
+    kinematic_on_target_ = false;
+  }
+  if (!joints_.empty()) {
+    // The joint force is impulsive like the contact force: weight s_c / s = 1 / (gamma c_a).
+    joints_.set_stiffness(scene_.time.integrator.joint_weight(), scene_scale, kJointStiffnessRatio,
+                          history_.joint_stiffening, elastic_.coupling_slabs());
+  }
+}
+
+StepOutcome Simulation::start_point(const StepContext& ctx) {
+  const bool is_static = scene_.time.integrator.is_static;
+  // x_n with the held vertices at their targets: the fallback start. (Kinematic vertices, which
+  // exist only with contact, start at x_n: the solve carries them.)
+  x_next_ = state_.x;
+  prescribe(ctx.t_end, x_next_, nullptr, nullptr, nullptr, false);
+  const int64_t n = model_.num_dofs();
+  if (!contact_) {
+    // Start from the predictor when it is a valid state (fewer iterations), else from x_n.
+    if (is_static) return {};
+    std::vector<double>& trial = a_next_;
+    trial = state_.x_tilde;
+    prescribe(ctx.t_end, trial, nullptr, nullptr, nullptr);
+    if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
+    return {};
+  }
+  // With contact, every point Newton visits must be intersection-free. The eliminated held
+  // vertices do not move here (a moving boundary is kinematic when the scene has contact), so
+  // x_n is such a point.
+  //
+  // With static friction above kinetic, the step's potential is not convex in the slip: a stuck
+  // and a sliding minimum can coexist, and the predictor (free flight) would start Newton in the
+  // sliding one. From x_n (no slip) a contact that can stick stays stuck, and a body whose
+  // momentum beats static friction has no stuck minimum and slides all the same.
+  if (is_static || (friction_ && friction_->table().has_static_peak())) return {};
+  // Then as far toward x_n + h v_n (kinematic vertices: toward their targets) as CCD allows (it
+  // stops short of any contact). That is implicit Euler's predictor; the second-order schemes'
+  // x_tilde adds h^2 terms of the acceleration (gravity, and the contact force's memory) that
+  // would start a body resting in contact deep in the barrier, where Newton needs ten times
+  // the iterations to climb back (measured on scenes/slope_stick.json).
+  kinematic_.motion_to_targets(x_next_.data(), motion_.data());
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    if (model_.dirichlet[v] < 0)
+      for (int d = 0; d < 3; ++d) {
+        const int64_t i = 3 * int64_t{v} + d;
+        motion_[i] = state_.x[i] + ctx.dt * state_.v[i] - x_next_[i];
+      }
+  const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+  std::vector<double>& trial = a_next_;
+  trial.resize(n);
+  for (int64_t i = 0; i < n; ++i) trial[i] = x_next_[i] + alpha * motion_[i];
+  if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
+  return {};
+}
+
+NewtonResult Simulation::solve_with_friction(const StepContext& ctx, int& iterations) {
+  // Friction is lagged at x_n, then (friction_iterations) at each solution, re-solving.
+  if (friction_) lag_friction(ctx, state_.x);
+  NewtonResult result = solve_kinematic(ctx, iterations);
+  const int lags = scene_.contact.friction_iterations < 0 ? kMaxFrictionLags : scene_.contact.friction_iterations;
+  for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
+    const double before = friction_->total_normal_force();
+    // Only the bodies with friction contacts, before or after the new lag, see a new potential:
+    // the rest stay converged.
+    newton_->thaw(friction_->stencils());
+    lag_friction(ctx, x_next_);
+    newton_->thaw(friction_->stencils());
+    const double after = friction_->total_normal_force();
+    if (scene_.contact.friction_iterations < 0 &&
+        std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))
+      break;
+    newton_->keep_converged_next_solve();
+    result = solve_kinematic(ctx, iterations);
+  }
+  return result;
+}
+
+NewtonResult Simulation::solve_kinematic(const StepContext& ctx, int& iterations) {
+  if (kinematic_.empty() || kinematic_on_target_) return solve_with_joints(ctx, iterations);
+  // Kinematic vertices: solves with their augmented Lagrangian pull them toward their targets
+  // while CCD sweeps their motion; then they are moved onto the targets (as far as CCD allows:
+  // a blocked move means another, stiffer solve), held there, and the step is solved again so
+  // that the bodies settle against them exactly where they belong.
+  for (int attempt = 0;; ++attempt) {
+    const NewtonResult result = solve_with_joints(ctx, iterations);
+    if (result.status != StepStatus::ok) return result;
+    kinematic_.update_multipliers(x_next_.data());  // the holding force, carried to the next step
+    kinematic_.motion_to_targets(x_next_.data(), motion_.data());
+    const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+    const int64_t n = model_.num_dofs();
+    for (int64_t i = 0; i < n; ++i) x_next_[i] += alpha * motion_[i];
+    if (alpha == 1.0) break;
+    if (attempt + 1 == kMaxKinematicAttempts) {
+      NewtonResult failed = result;
+      failed.status = StepStatus::boundary_collision;
+      failed.message = "a moving boundary or obstacle cannot reach its prescribed position: something "
+                       "it pushes is held or wedged";
+      return failed;
+    }
+    if (history_.kinematic_stiffening < kMaxJointStiffening) {
+      history_.kinematic_stiffening *= kJointStiffening;
+      kinematic_.set_stiffness(kKinematicStiffnessRatio);
+    }
+  }
+  kinematic_on_target_ = true;
+  newton_->hold(kinematic_.vertices(), true);
+  return solve_with_joints(ctx, iterations);
+}
+
+NewtonResult Simulation::solve_with_joints(const StepContext& ctx, int& iterations) {
+  const NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, ctx.dt};
+  NewtonResult result = newton_->solve(x_next_, settings);
+  iterations += result.iterations;
+  // A multiplier update moves the minimiser by about the violation; Newton must not call that
+  // converged before taking it, so the rounds use a tolerance well below the joint tolerance.
+  NewtonSettings round_settings = settings;
+  round_settings.tolerance = std::min(settings.tolerance, 0.1 * joint_tolerance_ / ctx.dt);
+  double previous = std::numeric_limits<double>::infinity();
+  for (int round = 0; !joints_.empty() && result.status == StepStatus::ok && round < kMaxJointRounds; ++round) {
+    const double violation = joints_.max_violation(x_next_.data());
+    if (violation <= joint_tolerance_) break;
+    joints_.update_multipliers(x_next_.data());
+    if (violation > previous / kJointStiffening && history_.joint_stiffening < kMaxJointStiffening) {
+      history_.joint_stiffening *= kJointStiffening;
+      joints_.set_stiffness(joints_.weight(), scene_.time.integrator.potential_scale(ctx.dt),
+                            kJointStiffnessRatio, history_.joint_stiffening, elastic_.coupling_slabs());
+    }
+    previous = violation;
+    result = newton_->solve(x_next_, round_settings);
+    iterations += result.iterations;
+  }
+  return result;
+}
+
+void Simulation::lag_friction(const StepContext& ctx, const std::vector<double>& x) {
+  // Before the first solve with contact the barrier stiffness is still unset: set it from x.
+  if (potential_.barrier_stiffness() == 0.0) potential_.begin_solve(x.data());
+  ProfileScope scope(&profile_, StepPhase::barrier);
+  contact_->find_candidates(x.data(), nullptr);
+  contact_->build_active_set(x.data());
+  ProfileScope friction_scope(&profile_, StepPhase::friction);
+  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), ctx.dt);
+}
+
+void Simulation::update_after_solve(const StepContext& ctx) {
+  const IntegratorParams& scheme = *ctx.scheme;
+  if (scheme.is_static) {
+    if (contact_) potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for the balance
+    return;
+  }
+  if (contact_) {
+    update_with_contact(ctx);
+    return;
+  }
+  update_implicit(scheme, ctx.dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
+  // Joint forces act as one impulse at the end of the step: out of the acceleration carried to
+  // the next step (engine/incremental_potential.hpp).
+  potential_.impulsive_forces(x_next_.data(), impulse_);
+  remove_impulse(scheme, impulse_, state_.a, state_.a_bar);
+}
+
+void Simulation::update_with_contact(const StepContext& ctx) {
+  // a_{n+1} = M^-1 (elastic + gravity forces) at x_{n+1}, evaluated, not taken from the
+  // positions: a stiff barrier turns the small error that Newton's tolerance leaves in x_{n+1}
+  // into a large error of the contact force, which a history built from (x - x_tilde) / s
+  // minus the contact force would carry into every later step (it made a toppled cube stack's
+  // kinetic energy grow to 1e8 J). The positions decide the contact impulse instead: whatever
+  // of x_{n+1} - x_tilde the smooth and joint forces do not explain, so the velocity stays as
+  // close to the positions as the tolerance, as implicit Euler's does.
+  a_next_ = state_.a;  // held vertices keep theirs until finish()
+  explicit_acceleration(x_next_, a_next_);
+  potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for joints and the balance
+  const std::vector<double>& joint = potential_.joint_force();
+  const IntegratorParams& p = *ctx.scheme;
+  const double dt = ctx.dt, s = ctx.potential_scale, s_c = ctx.contact_scale;
+  const double s_j = joints_.empty() ? 0.0 : s * joints_.weight();
+  const double c_a = p.c_a(), c_f = p.c_f(), c_m = p.c_m(), gamma = p.gamma;
+  // Kept when the scene's scheme uses it (also after a first step taken by implicit Euler).
+  std::vector<double>& memory = history_.contact_memory;
+  const bool remember = scene_.time.integrator.contact_memory_scale(dt) != 0.0;
+  if (remember) memory.assign(model_.num_dofs(), 0.0);
+  std::vector<double>& x_tilde = state_.x_tilde;
+  std::vector<double>&v = state_.v, &a = state_.a, &a_bar = state_.a_bar;
+  for (int32_t vertex = 0; vertex < model_.num_vertices; ++vertex) {
+    if (model_.dirichlet[vertex] >= 0) continue;
+    const double m = model_.mass[vertex];
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{vertex} + d;
+      const double a_new = a_next_[i];
+      const double j_joint = joint.empty() ? 0.0 : joint[i] / m;
+      const double j_contact = (x_next_[i] - x_tilde[i] - s * a_new - s_j * j_joint) / s_c;
+      const double a_bar_new = c_a * a_new + (c_f * a[i] - c_m * a_bar[i]);
+      v[i] += dt * ((1.0 - gamma) * a_bar[i] + gamma * a_bar_new) + dt * (j_contact + j_joint);
+      a[i] = a_new;
+      a_bar[i] = a_bar_new;
+      if (remember) memory[i] = m * j_contact;
+    }
+  }
+}
+
+void Simulation::finish(const StepContext& ctx, double held_kinetic_before) {
+  state_.x.swap(x_next_);
+  const bool dynamic = !ctx.scheme->is_static;
+  prescribe(ctx.t_end, state_.x, dynamic ? &state_.v : nullptr, dynamic ? &state_.a : nullptr,
+            dynamic ? &state_.a_bar : nullptr);
+  balance_.boundary_work += held_kinetic_energy(model_, state_.v) - held_kinetic_before;
+}
+
+void Simulation::drop_caches() {
+  newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
+  kinematic_on_target_ = false;
+}
+
+// ---- helpers of the stages ----------------------------------------------------------------
 
 void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>* v,
                            std::vector<double>* a, std::vector<double>* a_bar, bool kinematic) const {
@@ -133,371 +508,6 @@ bool Simulation::explicit_acceleration(const std::vector<double>& x, std::vector
   return true;
 }
 
-StepOutcome Simulation::step() {
-  const auto start = std::chrono::steady_clock::now();
-  int iterations = 0, retries = 0;
-  const double t_next = state_.time + scene_.time.dt;
-  balance_ = {};
-  stats_.guarded_steps = 0;
-  energy_now_ = energy_before_;
-  StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
-  stats_.retries = retries;
-  if (outcome.status != StepStatus::ok) return outcome;
-  state_.time = t_next;
-  ++state_.step;
-
-  stats_.step = state_.step;
-  stats_.time = state_.time;
-  stats_.newton_iterations = iterations;
-  {
-    ProfileScope scope(&profile_, StepPhase::measure);
-    measure(stats_);
-    // What the named terms do not explain is the time integration's own doing.
-    balance_.integrator_energy = (stats_.total_energy - energy_before_) - balance_.boundary_work +
-                                 balance_.friction_dissipated - balance_.kappa_energy;
-    stats_.balance = balance_;
-    energy_before_ = stats_.total_energy;
-  }
-  stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return outcome;
-}
-
-StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, int& iterations, int& retries) {
-  const int halvings = scene_.solver.substep_halvings;
-  // The state to go back to if this attempt fails.
-  CheckpointWriter before;
-  save(before);
-  const EnergyBalance balance_before = balance_;
-  const double energy_start = energy_now_;
-  auto go_back = [&] {
-    CheckpointReader in(before.bytes(), "the state before the failed step");
-    restore(in);
-    balance_ = balance_before;
-    energy_now_ = energy_start;
-  };
-  const double t_start = state_.time;
-  StepOutcome outcome = advance(dt, t_next, iterations);
-  if (outcome.status == StepStatus::ok && guard_energy(balance_before)) {
-    // The integration would have created energy: the same interval again with implicit Euler.
-    go_back();
-    force_euler_ = true;
-    outcome = advance(dt, t_next, iterations);
-    force_euler_ = false;
-    if (outcome.status == StepStatus::ok) {
-      ++stats_.guarded_steps;
-      guard_energy(balance_before);
-    }
-  }
-  if (outcome.status == StepStatus::ok) return outcome;
-  go_back();
-  if (level == halvings) {
-    if (halvings == 0) return outcome;
-    char where[160];
-    std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
-                  halvings, halvings == 1 ? "" : "s", dt, t_start);
-    outcome.message += where;
-    return outcome;
-  }
-  // Two steps of half the size; each may split again. If either fails for good, the state goes
-  // back to where this interval started.
-  ++retries;
-  const double t_mid = t_start + 0.5 * (t_next - t_start);
-  outcome = advance_or_split(t_mid - t_start, t_mid, level + 1, iterations, retries);
-  if (outcome.status == StepStatus::ok) {
-    state_.time = t_mid;
-    outcome = advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
-  }
-  if (outcome.status != StepStatus::ok) go_back();
-  return outcome;
-}
-
-StepOutcome Simulation::advance(double dt, double t_next, int& iterations) {
-  dt_ = dt;
-  const IntegratorParams& integrator = step_scheme(dt);
-  last_attempt_euler_ = integrator.is_implicit_euler();
-  StepOutcome outcome;
-  const double kappa_before = potential_.barrier_stiffness();
-  const double held_kinetic_before = held_kinetic_energy(model_, state_.v);
-
-  predict_x_tilde(integrator, dt, state_.x, state_.v, state_.a, state_.a_bar, state_.x_tilde);
-  if (integrator.is_explicit()) {
-    x_next_ = state_.x_tilde;
-    prescribe(t_next, x_next_, nullptr, nullptr, nullptr);
-    a_next_ = state_.a;  // prescribed vertices keep theirs until prescribe() below
-    if (!explicit_acceleration(x_next_, a_next_)) {
-      outcome = {StepStatus::non_finite, "non-finite forces after the explicit update (the step "
-                                         "is above the stability limit or a tet inverted)"};
-      return outcome;
-    }
-    update_explicit(integrator, dt, a_next_, state_.v, state_.a, state_.a_bar);
-  } else {
-    if (!newton_) {
-      newton_ = std::make_unique<NewtonSolver>(model_, potential_);
-      newton_->set_profile(&profile_);
-    }
-    const double scale = integrator.potential_scale(dt);
-    potential_.begin_step(state_.x_tilde, scale, integrator.contact_scale(dt), !integrator.is_static);
-    add_contact_memory(integrator, dt);
-    if (!kinematic_.empty()) {
-      std::vector<double>& target = a_next_;
-      target = state_.x;
-      prescribe(t_next, target, nullptr, nullptr, nullptr);
-      kinematic_.set_targets(target);
-      if (kinematic_on_target_) newton_->hold(kinematic_.vertices(), false);
-      kinematic_on_target_ = false;
-    }
-    outcome = start_point(t_next);
-    if (outcome.status != StepStatus::ok) return outcome;
-    // Friction is lagged at x_n, then (friction_iterations) at each solution, re-solving.
-    if (friction_) lag_friction(state_.x);
-    NewtonResult result = solve_step(iterations);
-    const int lags = scene_.contact.friction_iterations < 0 ? kMaxFrictionLags : scene_.contact.friction_iterations;
-    for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
-      const double before = friction_->total_normal_force();
-      // Only the bodies with friction contacts, before or after the new lag, see a new potential:
-      // the rest stay converged.
-      newton_->thaw(friction_->stencils());
-      lag_friction(x_next_);
-      newton_->thaw(friction_->stencils());
-      const double after = friction_->total_normal_force();
-      if (scene_.contact.friction_iterations < 0 &&
-          std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))
-        break;
-      newton_->keep_converged_next_solve();
-      result = solve_step(iterations);
-    }
-    if (result.status != StepStatus::ok) {
-      outcome = {result.status, result.message};
-      return outcome;
-    }
-    if (!integrator.is_static) {
-      if (contact_) {
-        update_with_contact(integrator, dt);
-      } else {
-        update_implicit(integrator, dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
-        // Joint forces act as one impulse at the end of the step: out of the acceleration
-        // carried to the next step (engine/incremental_potential.hpp).
-        potential_.impulsive_forces(x_next_.data(), impulse_);
-        remove_impulse(integrator, impulse_, state_.a, state_.a_bar);
-      }
-    } else if (contact_) {
-      potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for the balance
-    }
-  }
-  account_energy(state_.x, x_next_, kappa_before);
-  state_.x.swap(x_next_);
-  const bool dynamic = !integrator.is_static;
-  prescribe(t_next, state_.x, dynamic ? &state_.v : nullptr, dynamic ? &state_.a : nullptr,
-            dynamic ? &state_.a_bar : nullptr);
-  balance_.boundary_work += held_kinetic_energy(model_, state_.v) - held_kinetic_before;
-  return outcome;
-}
-
-Simulation::MotionSums Simulation::motion_sums() const {
-  MotionSums sums;
-  for (int32_t i = 0; i < model_.num_vertices; ++i) {
-    const double m = model_.mass[i];
-    const Eigen::Vector3d vi = Eigen::Vector3d::Map(&state_.v[3 * i]);
-    sums.kinetic += 0.5 * m * vi.squaredNorm();
-    sums.gravity -= m * model_.gravity.dot(Eigen::Vector3d::Map(&state_.x[3 * i]));
-    sums.momentum += m * vi;
-  }
-  return sums;
-}
-
-Simulation::Energies Simulation::energies_now() const {
-  const auto [kinetic, gravity, momentum] = motion_sums();
-  double barrier = 0.0;
-  if (contact_ && potential_.barrier_stiffness() > 0.0)
-    barrier = potential_.barrier_stiffness() * contact_->energy(state_.x.data());
-  const double in_motion = kinetic + elastic_.energy(state_.x.data()) + barrier;
-  return {in_motion + gravity, std::abs(in_motion), gravity};
-}
-
-bool Simulation::guard_energy(const EnergyBalance& balance_before) {
-  const IntegratorParams& scheme = scene_.time.integrator;
-  if (!scene_.time.energy_guard || scheme.is_static || scheme.is_explicit() || scheme.is_implicit_euler()) return false;
-  // The energy this attempt's integration created: the change of the total energy that the
-  // balance's named terms (boundary work, friction, kappa) do not explain.
-  const Energies end = energies_now();
-  const double boundary_work = balance_.boundary_work - balance_before.boundary_work;
-  const double explained = boundary_work - (balance_.friction_dissipated - balance_before.friction_dissipated) +
-                           (balance_.kappa_energy - balance_before.kappa_energy);
-  // Less an allowance for the error of the trapezoidal boundary work, 1e-3 of it (its relative
-  // error is about (h omega)^2 / 12 for a boundary turning at omega: 4e-5 on bar_twist).
-  const double created = end.total - energy_now_ - explained - 1e-3 * std::abs(boundary_work);
-  // Allowed: what the integration has taken out so far (numerical damping, impacts), and a
-  // margin of 1e-3 of the largest energy in motion seen, this attempt's end included (a body
-  // that starts at rest has none before its first step), plus 1e-10 of the gravity energy,
-  // whose size depends only on where the origin is. The guard is for energy created steadily
-  // (a drift, a blow-up), not for the noise of Newton's tolerance: at 1e-6, Newmark's first
-  // step of the cantilever (1.4e-6 of its energy) was retaken, and implicit Euler took 0.32 J.
-  const double scale = std::max(energy_scale_, end.in_motion);
-  const double tolerance = 1e-3 * scale + 1e-10 * std::abs(end.gravity);
-  if (!last_attempt_euler_ && integrator_created_ + created > tolerance) return true;
-  integrator_created_ += created;
-  energy_now_ = end.total;
-  energy_scale_ = scale;
-  return false;
-}
-
-const IntegratorParams& Simulation::step_scheme(double dt) {
-  static const IntegratorParams kEuler = *integrator_preset("implicit_euler");
-  if (force_euler_) return kEuler;
-  const IntegratorParams& scheme = scene_.time.integrator;
-  if (!contact_ || !contact_memory_.empty() || scheme.contact_memory_scale(dt) == 0.0) return scheme;
-  // No contact force of a step before this one to remember: the first step, or the first after
-  // a checkpoint written without it. Contacts already touching at x_n would then be taken for new
-  // ones, and a body resting on a slope would be kicked by the difference; implicit Euler, whose
-  // contact weight is its own steady one, takes this step instead and leaves the memory for the
-  // next. Without touching contacts the memory is zero.
-  contact_->find_candidates(state_.x.data(), nullptr);
-  if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat()) return kEuler;
-  contact_memory_.assign(model_.num_dofs(), 0.0);
-  return scheme;
-}
-
-void Simulation::add_contact_memory(const IntegratorParams& integrator, double dt) {
-  const double weight = integrator.contact_memory_scale(dt);
-  if (!contact_ || weight == 0.0 || contact_memory_.empty()) return;
-  for (int32_t v = 0; v < model_.num_vertices; ++v) {
-    if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
-    for (int d = 0; d < 3; ++d) state_.x_tilde[3 * v + d] += weight * contact_memory_[3 * v + d] / model_.mass[v];
-  }
-}
-
-void Simulation::update_with_contact(const IntegratorParams& p, double dt) {
-  // a_{n+1} = M^-1 (elastic + gravity forces) at x_{n+1}, evaluated, not taken from the
-  // positions: a stiff barrier turns the small error that Newton's tolerance leaves in x_{n+1}
-  // into a large error of the contact force, which a history built from (x - x_tilde) / s
-  // minus the contact force would carry into every later step (it made a toppled cube stack's
-  // kinetic energy grow to 1e8 J). The positions decide the contact impulse instead: whatever
-  // of x_{n+1} - x_tilde the smooth and joint forces do not explain, so the velocity stays as
-  // close to the positions as the tolerance, as implicit Euler's does.
-  a_next_ = state_.a;  // held vertices keep theirs until prescribe()
-  explicit_acceleration(x_next_, a_next_);
-  potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for joints and the balance
-  const std::vector<double>& joint = potential_.joint_force();
-  const double s = p.potential_scale(dt), s_c = p.contact_scale(dt);
-  const double s_j = joints_.empty() ? 0.0 : s * joints_.weight();
-  const double c_a = p.c_a(), c_f = p.c_f(), c_m = p.c_m(), gamma = p.gamma;
-  // Kept when the scene's scheme uses it (also after a first step taken by implicit Euler).
-  const bool remember = scene_.time.integrator.contact_memory_scale(dt) != 0.0;
-  if (remember) contact_memory_.assign(model_.num_dofs(), 0.0);
-  std::vector<double>& x_tilde = state_.x_tilde;
-  std::vector<double>&v = state_.v, &a = state_.a, &a_bar = state_.a_bar;
-  for (int32_t vertex = 0; vertex < model_.num_vertices; ++vertex) {
-    if (model_.dirichlet[vertex] >= 0) continue;
-    const double m = model_.mass[vertex];
-    for (int d = 0; d < 3; ++d) {
-      const int64_t i = 3 * int64_t{vertex} + d;
-      const double a_new = a_next_[i];
-      const double j_joint = joint.empty() ? 0.0 : joint[i] / m;
-      const double j_contact = (x_next_[i] - x_tilde[i] - s * a_new - s_j * j_joint) / s_c;
-      const double a_bar_new = c_a * a_new + (c_f * a[i] - c_m * a_bar[i]);
-      v[i] += dt * ((1.0 - gamma) * a_bar[i] + gamma * a_bar_new) + dt * (j_contact + j_joint);
-      a[i] = a_new;
-      a_bar[i] = a_bar_new;
-      if (remember) contact_memory_[i] = m * j_contact;
-    }
-  }
-}
-
-void Simulation::account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new,
-                                double kappa_before) {
-  const std::vector<double> none;
-  const std::vector<double>& contact_force = contact_ ? potential_.contact_force() : none;
-  const std::vector<double>& friction_force = friction_ ? potential_.friction_force() : none;
-  if (held_vertices_move(model_, x_old, x_new)) {
-    const int64_t n = model_.num_dofs();
-    elastic_gradient_old_.resize(n);
-    elastic_gradient_new_.resize(n);
-    elastic_.energy_gradient(x_old.data(), elastic_gradient_old_.data());
-    elastic_.energy_gradient(x_new.data(), elastic_gradient_new_.data());
-    balance_.boundary_work += boundary_work(model_, x_old, x_new, elastic_gradient_old_, elastic_gradient_new_,
-                                            {&contact_force, &friction_force});
-  }
-  balance_.friction_dissipated += friction_dissipation(x_old, x_new, friction_force);
-  const double kappa = potential_.barrier_stiffness();
-  if (contact_ && kappa != kappa_before) balance_.kappa_energy += (kappa - kappa_before) * contact_->energy(x_new.data());
-}
-
-NewtonResult Simulation::solve_step(int& iterations) {
-  if (kinematic_.empty() || kinematic_on_target_) return solve_with_joints(iterations);
-  // Kinematic vertices: solves with their augmented Lagrangian pull them toward their targets
-  // while CCD sweeps their motion; then they are moved onto the targets (as far as CCD allows:
-  // a blocked move means another, stiffer solve), held there, and the step is solved again so
-  // that the bodies settle against them exactly where they belong.
-  for (int attempt = 0;; ++attempt) {
-    const NewtonResult result = solve_with_joints(iterations);
-    if (result.status != StepStatus::ok) return result;
-    kinematic_.update_multipliers(x_next_.data());  // the holding force, carried to the next step
-    kinematic_.motion_to_targets(x_next_.data(), motion_.data());
-    const double alpha = contact_->max_step(x_next_.data(), motion_.data());
-    const int64_t n = model_.num_dofs();
-    for (int64_t i = 0; i < n; ++i) x_next_[i] += alpha * motion_[i];
-    if (alpha == 1.0) break;
-    if (attempt + 1 == kMaxKinematicAttempts) {
-      NewtonResult failed = result;
-      failed.status = StepStatus::boundary_collision;
-      failed.message = "a moving boundary or obstacle cannot reach its prescribed position: something "
-                       "it pushes is held or wedged";
-      return failed;
-    }
-    if (kinematic_stiffening_ < kMaxJointStiffening) {
-      kinematic_.stiffen(kJointStiffening);
-      kinematic_stiffening_ *= kJointStiffening;
-    }
-  }
-  kinematic_on_target_ = true;
-  newton_->hold(kinematic_.vertices(), true);
-  return solve_with_joints(iterations);
-}
-
-NewtonResult Simulation::solve_with_joints(int& iterations) {
-  const double dt = dt_;
-  const NewtonSettings settings{scene_.solver.tolerance, scene_.solver.max_iterations, dt};
-  if (!joints_.empty() && !joint_stiffness_set_) {
-    // The potential scale is fixed for a run (dt and the scheme do not change).
-    const IntegratorParams& integrator = scene_.time.integrator;
-    // The joint force is impulsive like the contact force: weight s_c / s = 1 / (gamma c_a).
-    joints_.set_weight(integrator.joint_weight());
-    joints_.set_stiffness(integrator.potential_scale(dt), kJointStiffnessRatio,
-                          elastic_.coupling_slabs());
-    joint_stiffness_set_ = true;
-  }
-  NewtonResult result = newton_->solve(x_next_, settings);
-  iterations += result.iterations;
-  // A multiplier update moves the minimiser by about the violation; Newton must not call that
-  // converged before taking it, so the rounds use a tolerance well below the joint tolerance.
-  NewtonSettings round_settings = settings;
-  round_settings.tolerance = std::min(settings.tolerance, 0.1 * joint_tolerance_ / dt);
-  double previous = std::numeric_limits<double>::infinity();
-  for (int round = 0; !joints_.empty() && result.status == StepStatus::ok && round < kMaxJointRounds; ++round) {
-    const double violation = joints_.max_violation(x_next_.data());
-    if (violation <= joint_tolerance_) break;
-    joints_.update_multipliers(x_next_.data());
-    if (violation > previous / kJointStiffening && joint_stiffening_ < kMaxJointStiffening) {
-      joints_.stiffen(kJointStiffening, elastic_.coupling_slabs());
-      joint_stiffening_ *= kJointStiffening;
-    }
-    previous = violation;
-    result = newton_->solve(x_next_, round_settings);
-    iterations += result.iterations;
-  }
-  return result;
-}
-
-void Simulation::lag_friction(const std::vector<double>& x) {
-  // Before the first solve with contact the barrier stiffness is still unset: set it from x.
-  if (potential_.barrier_stiffness() == 0.0) potential_.begin_solve(x.data());
-  ProfileScope scope(&profile_, StepPhase::barrier);
-  contact_->find_candidates(x.data(), nullptr);
-  contact_->build_active_set(x.data());
-  ProfileScope friction_scope(&profile_, StepPhase::friction);
-  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), dt_);
-}
-
 void Simulation::constrain_initial_acceleration() {
   // a = M^-1 (f - J^T mu) on free vertices with J a = 0 (J is constant: c is linear), so
   // (J M^-1 J^T) mu = J a_f, a_f = the unconstrained acceleration (held vertices keep theirs).
@@ -530,130 +540,15 @@ void Simulation::constrain_initial_acceleration() {
   for (int64_t j = 0; j < joints_.size(); ++j) joints_.set_multiplier(j, -mu.segment<3>(3 * j));
 }
 
-StepOutcome Simulation::start_point(double t_next) {
-  const bool is_static = scene_.time.integrator.is_static;
-  // x_n with the held vertices at their targets: the fallback start. (Kinematic vertices, which
-  // exist only with contact, start at x_n: the solve carries them.)
-  x_next_ = state_.x;
-  prescribe(t_next, x_next_, nullptr, nullptr, nullptr, false);
-  const int64_t n = model_.num_dofs();
-  if (!contact_) {
-    // Start from the predictor when it is a valid state (fewer iterations), else from x_n.
-    if (is_static) return {};
-    std::vector<double>& trial = a_next_;
-    trial = state_.x_tilde;
-    prescribe(t_next, trial, nullptr, nullptr, nullptr);
-    if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
-    return {};
-  }
-  // With contact, every point Newton visits must be intersection-free. The eliminated held
-  // vertices do not move here (a moving boundary is kinematic when the scene has contact), so
-  // x_n is such a point.
-  //
-  // With static friction above kinetic, the step's potential is not convex in the slip: a stuck
-  // and a sliding minimum can coexist, and the predictor (free flight) would start Newton in the
-  // sliding one. From x_n (no slip) a contact that can stick stays stuck, and a body whose
-  // momentum beats static friction has no stuck minimum and slides all the same.
-  if (is_static || (friction_ && friction_->table().has_static_peak())) return {};
-  // Then as far toward x_n + h v_n (kinematic vertices: toward their targets) as CCD allows (it
-  // stops short of any contact). That is implicit Euler's predictor; the second-order schemes'
-  // x_tilde adds h^2 terms of the acceleration (gravity, and the contact force's memory) that
-  // would start a body resting in contact deep in the barrier, where Newton needs ten times
-  // the iterations to climb back (measured on scenes/slope_stick.json).
-  kinematic_.motion_to_targets(x_next_.data(), motion_.data());
-  for (int32_t v = 0; v < model_.num_vertices; ++v)
-    if (model_.dirichlet[v] < 0)
-      for (int d = 0; d < 3; ++d) {
-        const int64_t i = 3 * int64_t{v} + d;
-        motion_[i] = state_.x[i] + dt_ * state_.v[i] - x_next_[i];
-      }
-  const double alpha = contact_->max_step(x_next_.data(), motion_.data());
-  std::vector<double>& trial = a_next_;
-  trial.resize(n);
-  for (int64_t i = 0; i < n; ++i) trial[i] = x_next_[i] + alpha * motion_[i];
-  if (std::isfinite(elastic_.energy(trial.data()))) x_next_.swap(trial);
-  return {};
-}
+// ---- checkpoints ----------------------------------------------------------------------------
 
-void Simulation::measure(StepStats& stats) const {
-  const std::vector<double>& x = state_.x;
-  const auto [kinetic, gravity, momentum] = motion_sums();
-  stats.kinetic_energy = kinetic;
-  stats.elastic_energy = elastic_.energy(x.data());
-  stats.gravity_energy = gravity;
-  stats.barrier_energy = 0.0;
-  stats.contacts = 0;
-  stats.min_distance = std::numeric_limits<double>::infinity();
-  if (contact_) {
-    // Leaves the barrier's candidates at a static search of x: the next step's first is free.
-    const BarrierPotential::Summary summary = contact_->summarize(x.data());
-    stats.barrier_energy = potential_.barrier_stiffness() * summary.barrier;
-    stats.contacts = summary.active;
-    stats.min_distance = summary.min_distance;
-  }
-  stats.total_energy = kinetic + stats.elastic_energy + gravity + stats.barrier_energy;
-  if (!joints_.empty()) stats.joint_violation = joints_.max_violation(x.data());
-  stats.momentum = momentum;
-}
-
-void Simulation::save(CheckpointWriter& out) const {
-  out.put(state_.step);
-  out.put(state_.time);
-  out.put_vector(state_.x);
-  out.put_vector(state_.v);
-  out.put_vector(state_.a);
-  out.put_vector(state_.a_bar);
-  out.put_vector(contact_memory_);
-  out.put(energy_before_);
-  out.put(integrator_created_);
-  out.put(energy_scale_);
-  potential_.save(out);
-  out.put<uint8_t>(joint_stiffness_set_);
-  out.put(joint_stiffening_);
-  joints_.save(out);
-  out.put(kinematic_stiffening_);
-  kinematic_.save(out);
-}
+void Simulation::save(CheckpointWriter& out) const { write_step_checkpoint(out, state_, history_); }
 
 void Simulation::restore(CheckpointReader& in) {
-  const int64_t n = model_.num_dofs();
-  State state;
-  state.step = in.get<int64_t>();
-  state.time = in.get<double>();
-  state.x = in.get_vector<double>(n);
-  state.v = in.get_vector<double>(n);
-  state.a = in.get_vector<double>(n);
-  state.a_bar = in.get_vector<double>(n);
-  std::vector<double> contact_memory = in.get_vector<double>();
-  if (!contact_memory.empty() && static_cast<int64_t>(contact_memory.size()) != n)
-    in.fail("contact memory of the wrong size");
-  if (!std::all_of(contact_memory.begin(), contact_memory.end(), [](double f) { return std::isfinite(f); }))
-    in.fail("non-finite contact memory");
-  const double energy_before = in.get<double>();
-  const double integrator_created = in.get<double>();
-  const double energy_scale = in.get<double>();
-  if (!std::isfinite(integrator_created) || !(energy_scale >= 0.0 && std::isfinite(energy_scale)))
-    in.fail("non-finite energy guard record");
-  if (state.step < 0 || !std::isfinite(state.time) || !std::isfinite(energy_before))
-    in.fail("negative step, or non-finite time or energy");
-  for (const std::vector<double>* field : {&state.x, &state.v, &state.a, &state.a_bar})
-    if (!std::all_of(field->begin(), field->end(), [](double value) { return std::isfinite(value); }))
-      in.fail("non-finite positions, velocities or accelerations");
-  state.x_tilde = state.x;
-  potential_.restore(in);
-  joint_stiffness_set_ = in.get<uint8_t>() != 0;
-  joint_stiffening_ = in.get<double>();
-  joints_.restore(in, elastic_.coupling_slabs());
-  kinematic_stiffening_ = in.get<double>();
-  kinematic_.restore(in);
-  kinematic_on_target_ = false;
-  newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
-  state_ = std::move(state);
-  contact_memory_ = std::move(contact_memory);
-  energy_before_ = energy_before;
-  integrator_created_ = integrator_created;
-  energy_scale_ = energy_scale;
+  const StepCheckpointShape shape{model_.num_dofs(), model_.num_vertices, joints_.size(),
+                                  static_cast<int64_t>(kinematic_.vertices().size()), contact_ != nullptr};
+  read_step_checkpoint(in, shape, state_, history_);
+  drop_caches();
 }
 
 }  // namespace nexdyn
-

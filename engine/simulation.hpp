@@ -1,24 +1,27 @@
-// The time step: the stage list every step runs, in order.
+// Simulation: owns the State, the StepHistory and the potential's terms, and advances them one
+// time step at a time. The order of a step is Simulation::attempt in simulation.cpp, one screen:
 //
-//   1. prescribe   Dirichlet vertices move to their targets at t + dt (analytic x, v, a)
-//   2. predict     x_tilde from x, v, a and a_bar                            (integrator.cpp),
-//                  plus the start-of-step contact force's share (contact memory)
-//   3. solve       implicit: Newton on the incremental potential          (solver/newton.cpp),
-//                  with contact starting from the largest collision-free part of the motion
-//                  x_n -> x_n + h v_n
-//                  explicit: x = x_tilde, a = M^-1 f(x)
-//   4. update      a, a_bar, v from the integrator family; contact, friction and joint forces
-//                  act as one impulse at the end of the step and stay out of a and a_bar
-//                  (integrator.cpp; update_with_contact)
-//   5. account     the step's energy balance: boundary work, friction, kappa (energy_balance.hpp)
-//   6. measure     energies and momentum for stats.csv; what the balance's terms leave
-//                  unexplained is the integrator's energy
+//   choose the scheme   the scene's, or implicit Euler (a first step that starts in contact, or
+//                       an attempt the energy guard retakes); the StepContext of the attempt
+//   predict             x_tilde from x, v, a and a_bar                      (integrator.cpp)
+//   explicit schemes:   x = x_tilde, a = M^-1 f(x)
+//   implicit schemes:
+//     prepare terms     the attempt's weights into the potential, the contact memory into
+//                       x_tilde, the kinematic targets, the joints' stiffness
+//     start point       x_n moved as far toward x_n + h v_n as CCD allows
+//     solve             Newton on the incremental potential (solver/newton.cpp), inside the
+//                       friction lags, the kinematic rounds and the joint multiplier rounds
+//     update            a, a_bar, v; contact, friction and joint forces act as one impulse at
+//                       the end of the step and stay out of a and a_bar
+//   account             the attempt's energy balance: boundary work, friction, kappa
+//   finish              x_{n+1} into the State, held vertices onto their paths
 //
-// The scheme of a step is the scene's, except for a step that starts in contact before any
-// contact memory exists (the first step of a scene whose bodies start touching), which implicit
-// Euler takes (step_scheme).
+// A failed attempt (Newton, factorisation, NaN) is rolled back, a copy of State and StepHistory,
+// and the interval is attempted as two halves, recursively (advance_or_split). After the step:
+//   measure             energies, momentum, contact summary for stats.csv; the energy balance's
+//                       unexplained rest is the integrator's energy (simulation_energy.cpp)
 //
-// A Simulation owns the State and the solver workspaces; the Model stays const.
+// The Model stays const; the scene must outlive the simulation.
 #pragma once
 
 #include "engine/elastic_assembly.hpp"
@@ -28,6 +31,9 @@
 #include "engine/scene/scene.hpp"
 #include "engine/solver/newton.hpp"
 #include "engine/solver/step_status.hpp"
+#include "engine/state.hpp"
+#include "engine/step_context.hpp"
+#include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
 
 #include <Eigen/Core>
@@ -37,6 +43,9 @@
 #include <string>
 
 namespace nexdyn {
+
+class CheckpointWriter;
+class CheckpointReader;
 
 // dhat [m] of a scene: contact.dhat, or 1e-3 of the bodies' bounding-box diagonal when absent.
 double resolved_dhat(const Scene& scene);
@@ -70,14 +79,18 @@ class Simulation {
  public:
   // Keeps references to scene.model; the scene must outlive the simulation.
   explicit Simulation(const Scene& scene);
+  Simulation(const Simulation&) = delete;  // the terms hold references into history_
+  Simulation& operator=(const Simulation&) = delete;
 
   // One step of the scene's dt. A failed attempt (Newton, factorisation, NaN) puts the state back
   // and is retried as two steps of half the dt, recursively, solver.substep_halvings deep at
   // most; the next step tries the full dt again. On failure the state is the one before the step.
   StepOutcome step();
   const State& state() const { return state_; }
+  const StepHistory& history() const { return history_; }
   const StepStats& last_stats() const { return stats_; }
   // Energies and momentum of the current state (step, time, iterations, wall time untouched).
+  // Changes nothing the next step reads.
   void measure(StepStats& stats) const;
   // Moving boundaries and obstacles of a contact scene (empty without).
   const KinematicTargets& kinematic() const { return kinematic_; }
@@ -86,26 +99,54 @@ class Simulation {
   // The largest memory the Newton solver's Cholesky factors held at once [bytes] (0: none).
   double peak_factor_bytes() const { return newton_ ? newton_->peak_factor_bytes() : 0.0; }
 
-  // Everything the next steps depend on: the State, and what the solver carries from step to
-  // step (barrier and joint stiffnesses, multipliers, the contact pattern). A simulation of the
-  // same scene restored from it takes the same steps bit for bit.
+  // Everything the next steps depend on: the State and the StepHistory
+  // (engine/output/step_checkpoint.hpp). A simulation of the same scene restored from it takes
+  // the same steps bit for bit.
   void save(CheckpointWriter& out) const;
   // CheckpointError naming the fault when the data does not fit this scene.
   void restore(CheckpointReader& in);
 
+  // Test seam: attempts at `level` (0: the scene's dt, k: its k-th halving) fail before they
+  // start, as a failed solve would, so a test can compare a rolled-back step with halves.
+  void fail_attempts_at_level(int level) { fail_level_ = level; }
+
  private:
+  // ---- the step (simulation.cpp)
+  StepOutcome advance_or_split(double dt, double t_next, int level, int& iterations, int& retries);
+  StepOutcome attempt(double dt, double t_next, int level, int& iterations);
+  // The scheme of an attempt (see the top of this file) and its context.
+  StepContext choose_scheme(double dt, double t_next, int level);
+  StepOutcome explicit_update(const StepContext& ctx);
+  StepOutcome implicit_solve(const StepContext& ctx, int& iterations);
+  void prepare_terms(const StepContext& ctx);
+  // Newton's starting point for the step (written into x_next_).
+  StepOutcome start_point(const StepContext& ctx);
+  // The solves of the step, with friction lagged at x_n and, under friction_iterations, at the
+  // solutions; then kinematic rounds and joint rounds inside (solve_kinematic, solve_with_joints).
+  NewtonResult solve_with_friction(const StepContext& ctx, int& iterations);
+  NewtonResult solve_kinematic(const StepContext& ctx, int& iterations);
+  NewtonResult solve_with_joints(const StepContext& ctx, int& iterations);
+  // Friction bases and normal forces at x (lagged; engine/contact/friction_potential.hpp).
+  void lag_friction(const StepContext& ctx, const std::vector<double>& x);
+  // The update of a, a_bar, v after the solve (impulsive forces kept out of a and a_bar).
+  void update_after_solve(const StepContext& ctx);
+  // The update of a, a_bar, v after a solve with contact (and f_{n+1} kept as the next f_n).
+  void update_with_contact(const StepContext& ctx);
+  // x_{n+1} into the state; prescribed vertices onto their paths at t_end.
+  void finish(const StepContext& ctx, double held_kinetic_before);
+  // Throws away what was built from the rolled-back state: Newton's islands and held vertices.
+  void drop_caches();
+
   // Held vertices at their prescribed positions (and velocities, accelerations) at time t;
   // kinematic ones too unless `kinematic` is false.
   void prescribe(double t, std::vector<double>& x, std::vector<double>* v, std::vector<double>* a,
                  std::vector<double>* a_bar, bool kinematic = true) const;
   // a = M^-1 f(x) on free vertices; false if f is not finite.
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
+  // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
+  void constrain_initial_acceleration();
 
-  // One attempt at the step from state_.time to t_next = state_.time + dt (state_.time and
-  // state_.step are left to the caller); adds its Newton iterations to `iterations`.
-  StepOutcome advance(double dt, double t_next, int& iterations);
-  // advance(), and on failure the state put back and the interval taken in two halves.
-  StepOutcome advance_or_split(double dt, double t_next, int level, int& iterations, int& retries);
+  // ---- energy accounting and measurement (simulation_energy.cpp)
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
   // energy of the motion x_old -> x_new to balance_.
   void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before);
@@ -126,29 +167,16 @@ class Simulation {
   // out before may be spent again), and the attempt must be retaken with implicit Euler;
   // otherwise the attempt is booked and false. balance_before: balance_ before the attempt.
   bool guard_energy(const EnergyBalance& balance_before);
-  // The scheme of the step: the scene's, or implicit Euler for a step that starts in contact with
-  // no contact force of a previous step to remember (IntegratorParams::contact_memory_scale).
-  const IntegratorParams& step_scheme(double dt);
-  // x_tilde += (alpha - r) h^2 M^-1 f_n: the start-of-step contact force's part of the step.
-  void add_contact_memory(const IntegratorParams& integrator, double dt);
-  // The update of a, a_bar, v after a solve with contact (and f_{n+1} kept as the next f_n).
-  void update_with_contact(const IntegratorParams& integrator, double dt);
-  // Newton's starting point for the step to t_next (written into x_next_).
-  StepOutcome start_point(double t_next);
-  // The Newton solves of the step: with kinematic vertices, first until they can be moved onto
-  // their targets, then with them held there; adds the Newton iterations to `iterations`.
-  NewtonResult solve_step(int& iterations);
-  // Newton solves repeated with updated joint multipliers until every joint holds to the
-  // tolerance.
-  NewtonResult solve_with_joints(int& iterations);
-  // Friction bases and normal forces at x (lagged; engine/contact/friction_potential.hpp).
-  void lag_friction(const std::vector<double>& x);
-  // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
-  void constrain_initial_acceleration();
+  // The measure stage: measure(), with the contact summary taken by the barrier itself, which
+  // leaves its candidates at a static search of x for the next step's first search.
+  void measure_step(StepStats& stats);
+  // Energies and momentum without the contact columns.
+  void measure_motion(StepStats& stats) const;
 
   const Scene& scene_;
   const Model& model_;
   State state_;
+  StepHistory history_;  // before the terms, which bind references into it
   StepStats stats_;
   StepProfile profile_;
   JointSet joints_;  // before elastic_, which takes its coupling groups
@@ -159,26 +187,16 @@ class Simulation {
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
   double joint_tolerance_ = 0.0;          // [m]
-  bool joint_stiffness_set_ = false;
-  double joint_stiffening_ = 1.0;          // product of the stiffenings so far
-  double kinematic_stiffening_ = 1.0;      // the same for the kinematic vertices
-  bool kinematic_on_target_ = false;       // this step's kinematic vertices are held on target
+  bool kinematic_on_target_ = false;      // this attempt's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces
   std::vector<double> impulse_;  // (3n) acceleration of the impulsive forces at the step's end
-  // (3n) the contact and friction force on each free vertex at the end of the last step [N]: the
-  // next step's start-of-step contact force (IntegratorParams::contact_memory_scale); 0 elsewhere
-  std::vector<double> contact_memory_;
   std::vector<double> elastic_gradient_old_, elastic_gradient_new_;  // (3n) of the boundary work
   EnergyBalance balance_;        // of the step under way, summed over its successful attempts
-  double energy_before_ = 0.0;   // [J] total energy of state_, where the next step's balance starts
-  // The energy guard: the total energy at the start of the attempt under way [J], the energy
-  // the integration has created since the start (negative: taken out), less the allowance for
-  // the boundary work's error [J], the largest energy
-  // in motion seen (the scale of the guard's margin) [J], whether the attempt under way is implicit Euler's,
-  // and whether the next attempt must be.
-  double energy_now_ = 0.0, integrator_created_ = 0.0, energy_scale_ = 0.0;
+  // The energy guard: the total energy at the start of the attempt under way [J], whether that
+  // attempt is implicit Euler's, and whether the next attempt must be.
+  double energy_now_ = 0.0;
   bool last_attempt_euler_ = false, force_euler_ = false;
-  double dt_ = 0.0;  // [s] of the attempt under way (the scene's dt, or a part of it)
+  int fail_level_ = -1;  // fail_attempts_at_level
 };
 
 }  // namespace nexdyn

@@ -4,13 +4,16 @@
 #include "engine/parallel.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
 
 namespace nexdyn {
 
-ContactPattern::ContactPattern(const HessianPattern& elastic) : elastic_(elastic) {
+ContactPattern::ContactPattern(const HessianPattern& elastic, std::vector<std::pair<int32_t, int32_t>>& pairs,
+                               uint64_t& stamp)
+    : elastic_(elastic), contact_pairs_(pairs), stamp_(stamp), built_stamp_(stamp) {
   // Vertex column J of the elastic pattern: DOF column 3J lists rows 3I, 3I+1, 3I+2 per
   // neighbour I < J, then 3J.
   const int64_t nv = elastic.num_dofs / 3;
@@ -21,6 +24,7 @@ ContactPattern::ContactPattern(const HessianPattern& elastic) : elastic_(elastic
     elastic_neighbor_ptr_[j + 1] = static_cast<int32_t>(elastic_neighbors_.size());
   }
   merged_ = elastic;  // the CscPattern part
+  if (!contact_pairs_.empty()) rebuild(contact_pairs_);
 }
 
 int64_t ContactPattern::block_value(int32_t i, int64_t column) const {
@@ -31,33 +35,20 @@ int64_t ContactPattern::block_value(int32_t i, int64_t column) const {
   return it - merged_.row_idx.begin();
 }
 
-std::vector<int32_t> ContactPattern::flat_contact_pairs() const {
-  std::vector<int32_t> flat;
-  flat.reserve(2 * contact_pairs_.size());
-  for (const auto& [j, i] : contact_pairs_) {
-    flat.push_back(j);
-    flat.push_back(i);
-  }
-  return flat;
-}
-
-void ContactPattern::restore_pairs(const std::vector<int32_t>& flat) {
-  const int32_t nv = static_cast<int32_t>(elastic_.num_dofs / 3);
-  std::vector<std::pair<int32_t, int32_t>> pairs;
-  pairs.reserve(flat.size() / 2);
-  for (size_t k = 0; k + 1 < flat.size(); k += 2) {
-    if (!(flat[k + 1] >= 0 && flat[k + 1] < flat[k] && flat[k] < nv))
-      throw std::invalid_argument("contact pattern pair (" + std::to_string(flat[k]) + ", " +
-                                  std::to_string(flat[k + 1]) + ") is not a vertex pair J > I of this model");
-    pairs.emplace_back(flat[k], flat[k + 1]);
-  }
-  rebuild(std::move(pairs));
+bool ContactPattern::sync() {
+  if (stamp_ == built_stamp_) return false;
+  rebuild(contact_pairs_);
+  return true;
 }
 
 void ContactPattern::rebuild(std::vector<std::pair<int32_t, int32_t>> pairs) {
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
   contact_pairs_ = std::move(pairs);
+  // Every list of pairs built gets a name of its own, so a history copied back over a newer one
+  // (whose name the pattern holds) is always seen as different.
+  static std::atomic<uint64_t> last_stamp{0};
+  stamp_ = built_stamp_ = ++last_stamp;
 
   const int64_t nv = elastic_.num_dofs / 3;
   // Merged neighbours of each vertex column: sorted union of elastic and contact neighbours.

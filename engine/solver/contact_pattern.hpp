@@ -24,7 +24,14 @@ namespace nexdyn {
 
 class ContactPattern {
  public:
-  explicit ContactPattern(const HessianPattern& elastic);
+  // The pairs the pattern holds live in `pairs` (StepHistory::contact_pattern_pairs: sorted (J, I),
+  // I < J, in range), named by `stamp`; both must outlive the pattern.
+  ContactPattern(const HessianPattern& elastic, std::vector<std::pair<int32_t, int32_t>>& pairs,
+                 uint64_t& stamp);
+
+  // Rebuilds the matrix pattern from the pairs when they are not the ones it was built from (a
+  // step rolled back, a checkpoint read). Returns true when it did.
+  bool sync();
 
   // Makes the pattern hold every vertex pair of the stencils and builds their gather table.
   // stencils: (num x 4) vertex ids, -1 = no DOFs (held, or past the stencil's n vertices);
@@ -38,11 +45,6 @@ class ContactPattern {
   // Incremented by every rebuild of the pattern.
   int64_t version() const { return version_; }
   int64_t num_contact_pairs() const { return static_cast<int64_t>(contact_pairs_.size()); }
-  // The pairs the pattern holds depend on the run's history, and the pattern decides the
-  // factorisation's ordering and so the last bits of every solve: a checkpoint keeps them.
-  // Flat (J, I) ids; restore_pairs rebuilds the same pattern from them.
-  std::vector<int32_t> flat_contact_pairs() const;
-  void restore_pairs(const std::vector<int32_t>& flat);
 
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
   // of their slabs (laid out as given to update()).
@@ -64,7 +66,12 @@ class ContactPattern {
   int64_t version_ = 0;
   std::vector<int32_t> elastic_neighbor_ptr_;            // (num_vertices + 1) CSR
   std::vector<int32_t> elastic_neighbors_;               // vertices I < J coupled by a tet
-  std::vector<std::pair<int32_t, int32_t>> contact_pairs_;  // sorted (J, I), I < J, not elastic
+  // Sorted (J, I), I < J, not elastic: the pairs depend on the run's history, and the pattern
+  // decides the factorisation's ordering and so the last bits of every solve, so they live in the
+  // StepHistory (rolled back and checkpointed with it).
+  std::vector<std::pair<int32_t, int32_t>>& contact_pairs_;
+  uint64_t& stamp_;          // the history's name for contact_pairs_
+  uint64_t built_stamp_ = 0;  // the name of the pairs merged_ was built from
 
   // Value index of every block (a <= b) of every stencil: kAbsent when the pattern lacks it,
   // kHeld when a vertex has no DOFs.

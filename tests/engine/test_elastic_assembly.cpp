@@ -72,9 +72,10 @@ TEST_CASE("incremental potential: gradient matches central differences of the en
   Scene scene = small_scene("neohookean");
   const Model& model = scene.model;
   ElasticAssembly assembly(model);
-  IncrementalPotential potential(model, assembly);
+  StepHistory history;
+  IncrementalPotential potential(model, assembly, history);
   const std::vector<double> x_tilde = test::perturbed(model.rest_positions, 0.01, 3);
-  potential.begin_step(x_tilde, 2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true);
+  potential.begin_step(x_tilde, weights_context(2 * 0.5 * 0.25 * 0.01 * 0.01, 2 * 0.5 * 0.25 * 0.01 * 0.01, true));
   std::vector<double> x = test::perturbed(model.rest_positions, 0.02, 11);
   std::vector<double> grad(model.num_dofs()), values(potential.pattern().nnz());
   potential.gradient_hessian(x.data(), grad.data(), values.data());

@@ -342,10 +342,11 @@ TEST_CASE("incremental potential group energy: the terms of each group, weighted
   const Model& model = s.model;
   ElasticAssembly elastic(model);
   BarrierPotential contact(model, kDhat);
-  IncrementalPotential potential(model, elastic, &contact);
+  StepHistory history;
+  IncrementalPotential potential(model, elastic, history, &contact);
   const std::vector<double> x_tilde = test::perturbed(s.x_lag, 1e-2, 6);
   const double scale = 1e-4, contact_scale = 2e-4;
-  potential.begin_step(x_tilde, scale, contact_scale, true);
+  potential.begin_step(x_tilde, weights_context(scale, contact_scale, true));
   potential.begin_solve(s.x_lag.data());  // candidates at x_lag, the barrier stiffness
   const double kappa = potential.barrier_stiffness();
   REQUIRE(kappa > 0.0);

@@ -32,7 +32,8 @@ TEST_CASE("joints: the attachment reproduces the joint point on each body") {
   const Scene scene = test::scene_from_json(pendulum_json(R"({ "dt": 0.01, "steps": 1 })", kJoints), "joints");
   const Model& m = scene.model;
   REQUIRE(m.joints.size() == 2);
-  JointSet joints(m);
+  std::vector<double> multipliers;
+  JointSet joints(m, multipliers);
   // c(x0) = 0: each side's weighted corners are the point (pin: minus the anchor).
   CHECK(joints.violation(m.rest_positions.data(), 0).norm() < 1e-14);
   CHECK(joints.violation(m.rest_positions.data(), 1).norm() < 1e-14);
@@ -74,10 +75,10 @@ TEST_CASE("joints: bad joint entries are refused with the key named") {
 TEST_CASE("joints: augmented Lagrangian gradient and Hessian match their definitions") {
   const Scene scene = test::scene_from_json(pendulum_json(R"({ "dt": 0.01, "steps": 1 })", kJoints), "joints_fd");
   const Model& m = scene.model;
-  JointSet joints(m);
+  std::vector<double> multipliers;
+  JointSet joints(m, multipliers);
   ElasticAssembly elastic(m, joints.coupling_groups());
-  joints.set_weight(2.0);
-  joints.set_stiffness(1e-4, 1e4, elastic.coupling_slabs());
+  joints.set_stiffness(2.0, 1e-4, 1e4, 1.0, elastic.coupling_slabs());
   joints.set_multiplier(0, Eigen::Vector3d(3, -1, 2));
   joints.set_multiplier(1, Eigen::Vector3d(-0.5, 4, 1));
   const std::vector<double> x = test::perturbed(m.rest_positions, 1e-3, 7);
@@ -125,7 +126,8 @@ TEST_CASE("joints: augmented Lagrangian gradient and Hessian match their definit
 TEST_CASE("joints: the initial acceleration respects the joints") {
   const Scene scene = test::scene_from_json(pendulum_json(R"({ "dt": 0.01, "steps": 1 })", kJoints), "joints_a0");
   const Simulation simulation(scene);
-  const JointSet joints(scene.model);
+  std::vector<double> multipliers;
+  const JointSet joints(scene.model, multipliers);
   const std::vector<double>& a = simulation.state().a;
   CHECK(joints.violation(a.data(), 0).norm() < 1e-9);  // pin: J a = 0 (the offset is -point)
   // Ball: J a with no offset.

@@ -1,6 +1,8 @@
 // Recovery from failed steps: a step whose dt is too large is retried as two of half the dt,
-// counted in the statistics; a recovered step is exactly two half steps; a step that fails at
-// every level leaves the state before it and says what failed and where.
+// counted in the statistics; a recovered step is exactly two half steps (also with joints and a
+// pushing wall, from a warmed-up history); a step that fails at every level leaves the state
+// before it and says what failed and where.
+#include "engine/output/checkpoint_file.hpp"
 #include "engine/run.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
@@ -81,4 +83,65 @@ TEST_CASE("a step that fails at every level leaves the state before it and says 
   CHECK(simulation.state().x == before.x);
   CHECK(simulation.state().v == before.v);
   CHECK(simulation.last_stats().retries == 1);
+}
+
+namespace {
+
+// Scene `name` with dt = 2^-k s: every time of the run (multiples of dt and dt / 2) is then exact,
+// so a step's halves and the steps of a scene of half the dt see the same times bit for bit.
+Scene scene_with_dt(const std::string& name, double dt) {
+  Scene scene = load_scene(test::scene_path(name));
+  scene.time.dt = dt;
+  scene.solver.substep_halvings = 1;
+  return scene;
+}
+
+}  // namespace
+
+// Nothing keeps a copy of dt: the joints' stiffness, the kinematic multipliers (forces times the
+// potential scale), the contact memory and the barrier stiffness are all recomputed or rescaled
+// from the attempt's StepContext. So after `warmup` steps, a step whose full-dt attempt fails
+// and is rolled back equals two steps of a simulation of half the dt restored from the same
+// checkpoint, with a non-trivial history: joint multipliers, or a wall pushing a block with
+// friction.
+TEST_CASE("a rolled-back step with history is exactly two steps of half the dt: joints and a pushing wall") {
+  struct Case {
+    const char* scene;
+    double dt;  // [s] a power of two
+    int warmup;
+  };
+  for (const Case& c : {Case{"double_pendulum.json", 0x1p-9, 10}, Case{"block_push.json", 0x1p-8, 20}}) {
+    CAPTURE(c.scene);
+    const Scene full = scene_with_dt(c.scene, c.dt), half = scene_with_dt(c.scene, 0.5 * c.dt);
+    Simulation recovered(full), halves(half);
+    for (int k = 0; k < c.warmup; ++k) REQUIRE(recovered.step().status == StepStatus::ok);
+    CheckpointWriter saved;
+    recovered.save(saved);
+    CheckpointReader in(saved.bytes(), "the warm-up");
+    halves.restore(in);
+    // The history is not trivial: the joints hold, or the wall pushes.
+    const StepHistory& h = recovered.history();
+    const bool joints = !h.joint_multipliers.empty();
+    const double held = joints ? Eigen::Map<const Eigen::VectorXd>(h.joint_multipliers.data(), h.joint_multipliers.size()).norm()
+                               : recovered.kinematic().total_force().norm();
+    CHECK(held > 0.1);  // [N]
+    recovered.fail_attempts_at_level(0);
+    REQUIRE(recovered.step().status == StepStatus::ok);
+    CHECK(recovered.last_stats().retries == 1);
+    int iterations = 0;
+    for (int k = 0; k < 2; ++k) {
+      REQUIRE(halves.step().status == StepStatus::ok);
+      iterations += halves.last_stats().newton_iterations;
+    }
+    CHECK(recovered.state().time == halves.state().time);
+    CHECK(recovered.state().x == halves.state().x);
+    CHECK(recovered.state().v == halves.state().v);
+    CHECK(recovered.state().a == halves.state().a);
+    CHECK(recovered.state().a_bar == halves.state().a_bar);
+    CHECK(recovered.history().joint_multipliers == halves.history().joint_multipliers);
+    CHECK(recovered.history().kinematic_multipliers == halves.history().kinematic_multipliers);
+    CHECK(recovered.history().contact_memory == halves.history().contact_memory);
+    CHECK(recovered.history().kappa == halves.history().kappa);
+    CHECK(recovered.last_stats().newton_iterations == iterations);
+  }
 }

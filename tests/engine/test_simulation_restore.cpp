@@ -3,6 +3,7 @@
 // from step to step (barrier stiffness, contact pattern, multipliers, stiffenings).
 #include "engine/output/checkpoint_file.hpp"
 #include "engine/run.hpp"
+#include "engine/output/checkpoint_file.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
 

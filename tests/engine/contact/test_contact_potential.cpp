@@ -55,10 +55,11 @@ TEST_CASE("incremental potential gradient with contact matches finite difference
   const Model& model = scene.model;
   ElasticAssembly elastic(model);
   BarrierPotential contact(model, kDhat);
-  IncrementalPotential potential(model, elastic, &contact);
+  StepHistory history;
+  IncrementalPotential potential(model, elastic, history, &contact);
   const std::vector<double> x = test::perturbed(model.rest_positions, 2e-3, 3);
   const std::vector<double> x_tilde = test::perturbed(x, 1e-2, 4);
-  potential.begin_step(x_tilde, 1e-4, 2e-4, true);
+  potential.begin_step(x_tilde, weights_context(1e-4, 2e-4, true));
   potential.begin_solve(x.data());
   potential.prepare(x.data(), true);
   REQUIRE(contact.num_active_pairs() > 20);
@@ -94,8 +95,9 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
     ElasticAssembly elastic(model);
     BarrierPotential contact(model, kDhat);
-    IncrementalPotential potential(model, elastic, &contact);
-    potential.begin_step(x_tilde, scale, 2 * scale, true);
+    StepHistory history;
+    IncrementalPotential potential(model, elastic, history, &contact);
+    potential.begin_step(x_tilde, weights_context(scale, 2 * scale, true));
     potential.begin_solve(x.data());
     potential.prepare(x.data(), true);
     grad.assign(model.num_dofs(), 0.0);

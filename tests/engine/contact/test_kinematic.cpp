@@ -47,7 +47,8 @@ TEST_CASE("kinematic: moving boundaries and obstacles are kinematic only with co
   CHECK_FALSE(m.dirichlet_motions[3].kinematic);
   // The wall moves about the centre of its bounding box; its vertices are unknowns of the step.
   CHECK((m.dirichlet_motions[2].center - Eigen::Vector3d(-0.08, 0.04, 0)).norm() < 1e-15);
-  const KinematicTargets kinematic(m);
+  StepHistory history;
+  const KinematicTargets kinematic(m, history);
   int64_t wall = 0, boundary = 0;
   for (int32_t v : kinematic.vertices()) {
     CHECK_FALSE(m.eliminated(v));
@@ -61,14 +62,16 @@ TEST_CASE("kinematic: moving boundaries and obstacles are kinematic only with co
   // Without contact the same boundary is prescribed exactly, as before.
   const Scene without = moving_scene("");
   CHECK_FALSE(without.model.dirichlet_motions[0].kinematic);
-  CHECK(KinematicTargets(without.model).empty());
+  StepHistory other_history;
+  CHECK(KinematicTargets(without.model, other_history).empty());
 }
 
 TEST_CASE("kinematic: the augmented Lagrangian's gradient and Hessian match its energy") {
   const Scene scene = moving_scene("{}");
   const Model& m = scene.model;
-  KinematicTargets kinematic(m);
-  kinematic.set_stiffness(1e3, 1e-4);
+  StepHistory history;
+  KinematicTargets kinematic(m, history);
+  kinematic.begin_attempt(1e3, 1e-4);
   kinematic.set_targets(test::perturbed(m.rest_positions, 1e-2, 3));
   const std::vector<double> x = test::perturbed(m.rest_positions, 1e-2, 4);
   kinematic.update_multipliers(x.data());  // non-zero multipliers

@@ -32,6 +32,7 @@ struct Problem {
   const Model& model = scene.model;
   ElasticAssembly elastic{model};
   std::unique_ptr<BarrierPotential> contact;
+  StepHistory step_history;
   IncrementalPotential potential;
   std::vector<double> x_tilde;
   NewtonSolver solver;
@@ -40,7 +41,7 @@ struct Problem {
   Problem(const std::string& json, const std::string& tag, double dhat = 0.0)
       : scene(test::scene_from_json(json, tag)),
         contact(dhat > 0.0 ? std::make_unique<BarrierPotential>(model, dhat) : nullptr),
-        potential(model, elastic, contact.get()),
+        potential(model, elastic, step_history, contact.get()),
         x_tilde(model.rest_positions),
         solver(model, potential) {
     solver.set_history(&history, true);
@@ -48,7 +49,7 @@ struct Problem {
 
   // Solves from x (moved in place) with x_tilde as it is now.
   NewtonResult solve(std::vector<double>& x, double tolerance, int max_iterations = 100) {
-    potential.begin_step(x_tilde, kDt * kDt, kDt * kDt, true);
+    potential.begin_step(x_tilde, weights_context(kDt * kDt, kDt * kDt, true));
     NewtonSettings settings;
     settings.tolerance = tolerance;
     settings.max_iterations = max_iterations;

@@ -1,0 +1,118 @@
+// State and StepHistory in a checkpoint payload (see step_checkpoint.hpp).
+#include "engine/output/step_checkpoint.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace nexdyn {
+
+namespace {
+
+bool all_finite(const std::vector<double>& values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+bool finite_non_negative(double value) { return std::isfinite(value) && value >= 0.0; }
+
+void write_pairs(CheckpointWriter& out, const std::vector<std::pair<int32_t, int32_t>>& pairs) {
+  std::vector<int32_t> flat;
+  flat.reserve(2 * pairs.size());
+  for (const auto& [j, i] : pairs) {
+    flat.push_back(j);
+    flat.push_back(i);
+  }
+  out.put_vector(flat);
+}
+
+std::vector<std::pair<int32_t, int32_t>> read_pairs(CheckpointReader& in, const StepCheckpointShape& shape) {
+  const std::vector<int32_t> flat = in.get_vector<int32_t>();
+  if (flat.size() % 2 != 0) in.fail("odd number of contact pattern ids");
+  if (!shape.has_contact && !flat.empty()) in.fail("contact pattern pairs for a scene without contact");
+  std::vector<std::pair<int32_t, int32_t>> pairs;
+  pairs.reserve(flat.size() / 2);
+  for (size_t k = 0; k < flat.size(); k += 2) {
+    const int32_t j = flat[k], i = flat[k + 1];
+    if (!(i >= 0 && i < j && j < shape.num_vertices))
+      in.fail("contact pattern pair (" + std::to_string(j) + ", " + std::to_string(i) +
+              ") is not a vertex pair J > I of this model");
+    if (!pairs.empty() && !(pairs.back() < std::make_pair(j, i))) in.fail("contact pattern pairs out of order");
+    pairs.emplace_back(j, i);
+  }
+  return pairs;
+}
+
+}  // namespace
+
+void write_step_checkpoint(CheckpointWriter& out, const State& state, const StepHistory& history) {
+  out.put(state.step);
+  out.put(state.time);
+  out.put_vector(state.x);
+  out.put_vector(state.v);
+  out.put_vector(state.a);
+  out.put_vector(state.a_bar);
+  out.put(history.kappa);
+  out.put(history.kappa_max);
+  out.put<uint8_t>(history.kappa_from_contact);
+  out.put_vector(history.contact_memory);
+  out.put_vector(history.joint_multipliers);
+  out.put(history.joint_stiffening);
+  out.put_vector(history.kinematic_multipliers);
+  out.put(history.kinematic_multiplier_scale);
+  out.put(history.kinematic_stiffening);
+  write_pairs(out, history.contact_pattern_pairs);
+  out.put(history.energy_before);
+  out.put(history.integrator_created);
+  out.put(history.energy_scale);
+}
+
+void read_step_checkpoint(CheckpointReader& in, const StepCheckpointShape& shape, State& state_out,
+                          StepHistory& history_out) {
+  const int64_t n = shape.num_dofs;
+  State state;
+  state.step = in.get<int64_t>();
+  state.time = in.get<double>();
+  state.x = in.get_vector<double>(n);
+  state.v = in.get_vector<double>(n);
+  state.a = in.get_vector<double>(n);
+  state.a_bar = in.get_vector<double>(n);
+  if (state.step < 0 || !std::isfinite(state.time)) in.fail("negative step, or non-finite time");
+  for (const std::vector<double>* field : {&state.x, &state.v, &state.a, &state.a_bar})
+    if (!all_finite(*field)) in.fail("non-finite positions, velocities or accelerations");
+  state.x_tilde = state.x;
+
+  StepHistory h;
+  h.kappa = in.get<double>();
+  h.kappa_max = in.get<double>();
+  h.kappa_from_contact = in.get<uint8_t>() != 0;
+  if (!finite_non_negative(h.kappa) || !finite_non_negative(h.kappa_max))
+    in.fail("barrier stiffness is not a finite number >= 0");
+  h.contact_memory = in.get_vector<double>();
+  if (!h.contact_memory.empty() && static_cast<int64_t>(h.contact_memory.size()) != n)
+    in.fail("contact memory of the wrong size");
+  if (!all_finite(h.contact_memory)) in.fail("non-finite contact memory");
+  h.joint_multipliers = in.get_vector<double>(3 * shape.num_joints);
+  h.joint_stiffening = in.get<double>();
+  h.kinematic_multipliers = in.get_vector<double>(3 * shape.num_kinematic);
+  h.kinematic_multiplier_scale = in.get<double>();
+  h.kinematic_stiffening = in.get<double>();
+  if (!all_finite(h.joint_multipliers) || !all_finite(h.kinematic_multipliers))
+    in.fail("non-finite joint or kinematic multipliers");
+  if (!(h.joint_stiffening >= 1.0 && std::isfinite(h.joint_stiffening)) ||
+      !(h.kinematic_stiffening >= 1.0 && std::isfinite(h.kinematic_stiffening)) ||
+      !(h.kinematic_multiplier_scale > 0.0 && std::isfinite(h.kinematic_multiplier_scale)))
+    in.fail("stiffening or multiplier scale out of range");
+  h.contact_pattern_pairs = read_pairs(in, shape);
+  h.contact_pattern_stamp = StepHistory::kContactPatternUnbuilt;
+  h.energy_before = in.get<double>();
+  h.integrator_created = in.get<double>();
+  h.energy_scale = in.get<double>();
+  if (!std::isfinite(h.energy_before)) in.fail("non-finite energy");
+  if (!std::isfinite(h.integrator_created) || !finite_non_negative(h.energy_scale))
+    in.fail("non-finite energy guard record");
+
+  state_out = std::move(state);
+  history_out = std::move(h);
+}
+
+}  // namespace nexdyn
