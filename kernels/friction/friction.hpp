@@ -166,7 +166,6 @@ inline Eigen::Vector2d edge_edge_closest_parameters(const Eigen::Vector3d& ea0,
   const Eigen::Vector3d w = ea0 - eb0;
   const double b = ea.dot(eb);
   const double d = ea.dot(w);
-  const double e = eb.dot(w);
   if (det > detail::kEdgesParallel * a * c) {
     // eb0 - ea0 = g1 ea - g2 eb + (normal part).
     const Eigen::Vector2d g = detail::in_plane_coordinates(-w, ea, eb);
