@@ -6,7 +6,7 @@
 #include <omp.h>
 
 #include <cstring>
-#include <stdexcept>
+#include <string>
 
 namespace nexdyn {
 
@@ -29,6 +29,19 @@ cholmod_sparse wrap(int64_t n, const int64_t* col_ptr, const int64_t* row_idx, c
   a.sorted = 1;
   a.packed = 1;
   return a;
+}
+
+// CHOLMOD's failure codes in words, the code's name last so that it can be looked up.
+std::string status_text(int status) {
+  switch (status) {
+    case CHOLMOD_OUT_OF_MEMORY: return "out of memory (CHOLMOD_OUT_OF_MEMORY)";
+    case CHOLMOD_TOO_LARGE:
+      return "the problem is too large for CHOLMOD's integers or the BLAS's (CHOLMOD_TOO_LARGE)";
+    case CHOLMOD_INVALID: return "invalid input (CHOLMOD_INVALID)";
+    case CHOLMOD_NOT_INSTALLED: return "a method this build of CHOLMOD lacks (CHOLMOD_NOT_INSTALLED)";
+    case CHOLMOD_GPU_PROBLEM: return "a GPU error (CHOLMOD_GPU_PROBLEM)";
+    default: return "CHOLMOD status " + std::to_string(status);
+  }
 }
 }  // namespace
 
@@ -79,15 +92,22 @@ CholmodSolver::~CholmodSolver() {
   delete common_;
 }
 
-void CholmodSolver::analyze(int64_t n, const int64_t* col_ptr, const int64_t* row_idx) {
+StepStatus CholmodSolver::cholmod_failure(const std::string& what) {
+  error_ = what + " failed: " + status_text(common_->status);
+  return StepStatus::linear_solver_failed;
+}
+
+StepStatus CholmodSolver::analyze(int64_t n, const int64_t* col_ptr, const int64_t* row_idx) {
   if (factor_) cholmod_l_free_factor(&factor_, common_);
   n_ = n;
   col_ptr_ = col_ptr;
   row_idx_ = row_idx;
   cholmod_sparse a = wrap(n, col_ptr, row_idx, nullptr);
   factor_ = cholmod_l_analyze(&a, common_);
-  if (!factor_) throw std::runtime_error("CHOLMOD symbolic analysis failed (status " +
-                                         std::to_string(common_->status) + ")");
+  if (!factor_)
+    return cholmod_failure("CHOLMOD symbolic analysis of a " + std::to_string(n) + " x " + std::to_string(n) +
+                           " matrix with " + std::to_string(col_ptr[n]) + " stored entries");
+  return StepStatus::ok;
 }
 
 double CholmodSolver::factor_nonzeros() const { return common_->lnz; }
@@ -119,20 +139,24 @@ std::string CholmodSolver::ordering_name() const {
   }
 }
 
-bool CholmodSolver::factorize(const double* values) {
+StepStatus CholmodSolver::factorize(const double* values) {
+  if (!factor_) {
+    error_ = "CHOLMOD numeric factorisation asked for without a symbolic analysis (the last one failed)";
+    return StepStatus::linear_solver_failed;
+  }
   omp_set_max_active_levels(0);  // again: this may be another thread than the constructor's
   cholmod_sparse a = wrap(n_, col_ptr_, row_idx_, values);
   const int ok = cholmod_l_factorize(&a, factor_, common_);
-  if (!ok || common_->status == CHOLMOD_NOT_POSDEF) {
-    error_ = common_->status == CHOLMOD_NOT_POSDEF
-                 ? "matrix not positive definite at column " + std::to_string(factor_->minor)
-                 : "CHOLMOD factorisation failed (status " + std::to_string(common_->status) + ")";
-    return false;
+  if (common_->status == CHOLMOD_NOT_POSDEF) {
+    error_ = "matrix not positive definite at column " + std::to_string(factor_->minor);
+    return StepStatus::factorization_failed;
   }
-  return true;
+  if (!ok) return cholmod_failure("CHOLMOD numeric factorisation of a " + std::to_string(n_) + " x " +
+                                  std::to_string(n_) + " matrix");
+  return StepStatus::ok;
 }
 
-void CholmodSolver::solve(const double* b, double* x) {
+StepStatus CholmodSolver::solve(const double* b, double* x) {
   cholmod_dense rhs;
   std::memset(&rhs, 0, sizeof(rhs));
   rhs.nrow = static_cast<size_t>(n_);
@@ -142,8 +166,12 @@ void CholmodSolver::solve(const double* b, double* x) {
   rhs.x = const_cast<double*>(b);
   rhs.xtype = CHOLMOD_REAL;
   rhs.dtype = CHOLMOD_DOUBLE;
-  cholmod_l_solve2(CHOLMOD_A, factor_, &rhs, nullptr, &x_, nullptr, &y_, &e_, common_);
+  // Fails when the first call cannot allocate the workspaces, or without a numeric factor.
+  if (!cholmod_l_solve2(CHOLMOD_A, factor_, &rhs, nullptr, &x_, nullptr, &y_, &e_, common_))
+    return cholmod_failure("CHOLMOD solve with the factor of a " + std::to_string(n_) + " x " +
+                           std::to_string(n_) + " matrix");
   std::memcpy(x, x_->x, sizeof(double) * static_cast<size_t>(n_));
+  return StepStatus::ok;
 }
 
 }  // namespace nexdyn

@@ -4,7 +4,15 @@
 // pattern, so it runs once per pattern and every Newton iteration after that pays only for the
 // numeric factorisation. The matrix is the upper triangle in CSC form (stype = +1) whose arrays
 // stay owned by the caller; this class only points CHOLMOD at them.
+//
+// Nothing here throws. CHOLMOD reports trouble in its status code (its memory comes from malloc,
+// which returns null rather than throwing), and every call that can fail returns a StepStatus:
+// factorization_failed when the matrix is not positive definite, linear_solver_failed when CHOLMOD
+// could not do the work at all (out of memory, a problem too large for its integers or the
+// BLAS's, invalid input); error() then says which call failed and why, in CHOLMOD's words.
 #pragma once
+
+#include "engine/solver/step_status.hpp"
 
 #include <cstdint>
 #include <string>
@@ -27,19 +35,23 @@ class CholmodSolver {
   CholmodSolver& operator=(const CholmodSolver&) = delete;
 
   // Symbolic analysis of the upper-triangular CSC pattern. Keeps pointers to the arrays.
-  void analyze(int64_t n, const int64_t* col_ptr, const int64_t* row_idx);
+  // ok, or linear_solver_failed (no analysis is kept then).
+  StepStatus analyze(int64_t n, const int64_t* col_ptr, const int64_t* row_idx);
   bool has_analysis() const { return factor_ != nullptr; }
 
-  // Numeric factorisation with the given values (same pattern as analyze). Returns false when the
-  // matrix is not positive definite or CHOLMOD failed; error() says why.
-  bool factorize(const double* values);
+  // Numeric factorisation with the given values (same pattern as analyze): ok,
+  // factorization_failed (not positive definite) or linear_solver_failed (no analysis to factorise
+  // with, or CHOLMOD failed).
+  StepStatus factorize(const double* values);
 
-  // Solves A x = b with the last factorisation. No allocation after the first call.
-  void solve(const double* b, double* x);
+  // Solves A x = b with the last factorisation: ok, or linear_solver_failed (x is then left
+  // alone). No allocation after the first successful call.
+  StepStatus solve(const double* b, double* x);
   // Frees a supernodal factor's values, keeping the analysis: the next factorize() allocates
   // them again. For systems that sit idle (their values are recomputed on every use anyway).
   void release_numeric();
 
+  // Why the last failed call failed; kept until the next failure.
   const std::string& error() const { return error_; }
 
   // Whether the BLAS under CHOLMOD may be called from several threads at once. True for OpenBLAS
@@ -56,6 +68,9 @@ class CholmodSolver {
   std::string ordering_name() const;
 
  private:
+  // Records "<what> failed: <CHOLMOD's status in words>" in error_; returns linear_solver_failed.
+  StepStatus cholmod_failure(const std::string& what);
+
   cholmod_common_struct* common_ = nullptr;
   cholmod_factor_struct* factor_ = nullptr;
   cholmod_dense_struct* x_ = nullptr;   // solve2 workspaces, reused across solves

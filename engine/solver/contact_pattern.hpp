@@ -37,7 +37,9 @@ class ContactPattern {
   // stencils: (num x 4) vertex ids, -1 = no DOFs (held, or past the stencil's n vertices);
   // slab_begin: (num + 1) start of each stencil's column-major 3n x 3n slab in the slab array,
   // so n = sqrt(slab size) / 3. With allow_shrink, a pattern holding over 4x the pairs the
-  // stencils need is rebuilt to fit them. Returns true when the pattern changed.
+  // stencils need is rebuilt to fit them. Returns true when the pattern changed. Over 2^32 contact
+  // values (more than the gather table's indices reach) it throws std::length_error before
+  // changing anything; NewtonSolver turns that into a failed step (newton.hpp).
   bool update(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
               bool allow_shrink);
 

@@ -2,7 +2,7 @@
 #include "engine/solver/island_system.hpp"
 
 #include <limits>
-#include <stdexcept>
+#include <new>
 #include <utility>
 
 namespace nexdyn {
@@ -16,8 +16,34 @@ bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, con
                                   const int32_t* local_index, int32_t island) {
   if (version == pattern_version_) return false;
   pattern_version_ = version;
-  if (global.nnz() > int64_t{std::numeric_limits<uint32_t>::max()})
-    throw std::length_error("the Newton matrix has more than 2^32 stored entries");
+  pattern_status_ = StepStatus::ok;
+  bool analyzed = false;
+  if (global.nnz() > int64_t{std::numeric_limits<uint32_t>::max()}) {
+    pattern_status_ = StepStatus::linear_solver_failed;
+    error_ = "the Newton matrix has " + std::to_string(global.nnz()) +
+             " stored entries, more than the 2^32 an island's value table can index";
+  } else {
+    try {
+      analyzed = build_tables(global, island_of, local_index, island);
+    } catch (const std::bad_alloc&) {
+      pattern_status_ = StepStatus::linear_solver_failed;
+      error_ = "out of memory building the tables of an island of " + std::to_string(num_dofs()) + " DOFs";
+    }
+  }
+  if (pattern_status_ != StepStatus::ok) {
+    // Half-built tables, or no analysis for the ones kept: forget them, so that the next call
+    // builds everything again whatever its version.
+    pattern_version_ = -1;
+    value_source_.clear();
+    dense_slot_.clear();
+    col_ptr_.clear();
+    row_idx_.clear();
+  }
+  return analyzed;
+}
+
+bool IslandSystem::build_tables(const CscPattern& global, const int32_t* island_of, const int32_t* local_index,
+                                int32_t island) {
   const int64_t n = num_dofs();
   const bool dense = n <= kDenseDofs;
   std::vector<int64_t> col_ptr(dense ? 0 : n + 1, 0), row_idx;
@@ -63,16 +89,18 @@ bool IslandSystem::update_pattern(const CscPattern& global, int64_t version, con
   col_ptr_ = std::move(col_ptr);
   row_idx_ = std::move(row_idx);
   if (!cholmod_) cholmod_ = std::make_unique<CholmodSolver>(/*supernodal=*/n > kSimplicialDofs);
-  cholmod_->analyze(n, col_ptr_.data(), row_idx_.data());
+  pattern_status_ = cholmod_->analyze(n, col_ptr_.data(), row_idx_.data());
+  if (pattern_status_ != StepStatus::ok) error_ = cholmod_->error();
   return true;
 }
 
-bool IslandSystem::factorize(const double* global_values) {
+StepStatus IslandSystem::factorize(const double* global_values) {
+  if (pattern_status_ != StepStatus::ok) return pattern_status_;  // error_ still says why
   if (cholmod_) {
     for (size_t k = 0; k < values_.size(); ++k) values_[k] = global_values[value_source_[k]];
-    if (cholmod_->factorize(values_.data())) return true;
-    error_ = cholmod_->error();
-    return false;
+    const StepStatus status = cholmod_->factorize(values_.data());
+    if (status != StepStatus::ok) error_ = cholmod_->error();
+    return status;
   }
   const int64_t n = num_dofs();
   dense_.setZero();
@@ -80,16 +108,20 @@ bool IslandSystem::factorize(const double* global_values) {
   for (size_t k = 0; k < value_source_.size(); ++k) a[dense_slot_[k]] = global_values[value_source_[k]];
   // In place: a second n x n copy would double the memory of the many small islands of a pile.
   const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Upper> llt(dense_);
-  if (llt.info() == Eigen::Success) return true;
+  if (llt.info() == Eigen::Success) return StepStatus::ok;
   error_ = "matrix not positive definite (dense island of " + std::to_string(n) + " DOFs)";
-  return false;
+  return StepStatus::factorization_failed;
 }
 
-void IslandSystem::solve(const double* global_rhs, double* global_out) {
+StepStatus IslandSystem::solve(const double* global_rhs, double* global_out) {
   for (size_t l = 0; l < vertices_.size(); ++l)
     for (int d = 0; d < 3; ++d) rhs_[3 * l + d] = global_rhs[3 * int64_t{vertices_[l]} + d];
   if (cholmod_) {
-    cholmod_->solve(rhs_.data(), out_.data());
+    const StepStatus status = cholmod_->solve(rhs_.data(), out_.data());
+    if (status != StepStatus::ok) {
+      error_ = cholmod_->error();
+      return status;
+    }
   } else {
     Eigen::Map<Eigen::VectorXd> b(rhs_.data(), num_dofs());
     dense_.triangularView<Eigen::Upper>().transpose().solveInPlace(b);
@@ -98,6 +130,7 @@ void IslandSystem::solve(const double* global_rhs, double* global_out) {
   }
   for (size_t l = 0; l < vertices_.size(); ++l)
     for (int d = 0; d < 3; ++d) global_out[3 * int64_t{vertices_[l]} + d] = out_[3 * l + d];
+  return StepStatus::ok;
 }
 
 }  // namespace nexdyn

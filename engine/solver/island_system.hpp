@@ -13,6 +13,10 @@
 // keeps unlocked global buffers, and under it supernodal islands must never be factorised or
 // solved at the same time as each other (must_run_alone(); newton.cpp runs them one after the
 // other). Each island's numbers are the same either way.
+//
+// Nothing here throws: a block that is not positive definite, a CHOLMOD failure, a pattern over
+// the 32-bit value tables or memory running out while building them all come back as a
+// StepStatus from factorize() or solve(), with error() saying why (step_status.hpp).
 #pragma once
 
 #include "engine/solver/cholmod_solver.hpp"
@@ -51,13 +55,17 @@ class IslandSystem {
   // Builds the value table for the global pattern of this version; local_index[v] is v's place
   // in the island's vertex list and island_of[v] its island (this one is `island`). Redoes the
   // symbolic analysis only when the island's block of the pattern changed; returns true then.
+  // When that fails, the failure is kept and the next factorize() returns it; the next call,
+  // of any version, tries again.
   bool update_pattern(const CscPattern& global, int64_t version, const int32_t* island_of,
                       const int32_t* local_index, int32_t island);
 
-  // Factorises the island's block of the global values. false: not positive definite.
-  bool factorize(const double* global_values);
-  // out = H^-1 rhs on the island's DOFs (other entries of out are left alone).
-  void solve(const double* global_rhs, double* global_out);
+  // Factorises the island's block of the global values: ok, factorization_failed (not positive
+  // definite) or linear_solver_failed (the pattern or CHOLMOD failed); error() says why.
+  StepStatus factorize(const double* global_values);
+  // out = H^-1 rhs on the island's DOFs (other entries of out are left alone): ok, or
+  // linear_solver_failed (out untouched).
+  StepStatus solve(const double* global_rhs, double* global_out);
   const std::string& error() const { return error_; }
   // Frees the factor of a supernodal island, keeping its analysis (CholmodSolver::release_numeric).
   void release_numeric() {
@@ -72,8 +80,13 @@ class IslandSystem {
   int64_t last_iteration = 0;   // Newton iteration counter (over all solves) of the last use
 
  private:
+  // The body of update_pattern; may throw std::bad_alloc, which update_pattern turns into a status.
+  bool build_tables(const CscPattern& global, const int32_t* island_of, const int32_t* local_index,
+                    int32_t island);
+
   std::vector<int32_t> vertices_;
   int64_t pattern_version_ = -1;
+  StepStatus pattern_status_ = StepStatus::ok;  // of the last update_pattern; error_ says why
   // The island's upper triangle in local DOFs: each entry's index into the global values and
   // (sparse islands) CSC arrays and values for CHOLMOD, or (dense islands) its place in dense_,
   // row + n col: a dense island needs no CSC copy at all.

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <initializer_list>
 #include <iterator>
+#include <stdexcept>
 
 namespace nexdyn {
 
@@ -139,6 +140,18 @@ void NewtonSolver::unfreeze_contacts() {
   if (const std::vector<int32_t>* stencils = potential_.barrier_stencils()) thaw(*stencils);
 }
 
+bool NewtonSolver::prepare_potential(const double* x, int iteration, NewtonResult& result) {
+  try {
+    potential_.prepare(x, iteration == 0);
+    return true;
+  } catch (const std::length_error& e) {
+    result.status = StepStatus::linear_solver_failed;
+    result.message =
+        "the Newton system is too large at Newton iteration " + std::to_string(iteration) + ": " + e.what();
+    return false;
+  }
+}
+
 IslandSystem& NewtonSolver::island_system(int32_t i) {
   const int32_t* v = islands_.vertices().data() + islands_.vertex_ptr()[i];
   const int32_t size = islands_.island_size(i);
@@ -162,7 +175,7 @@ IslandSystem& NewtonSolver::island_system(int32_t i) {
 int64_t NewtonSolver::solve_islands(int& analyses) {
   const int64_t count = static_cast<int64_t>(active_.size());
   active_system_.resize(count);
-  active_ok_.assign(count, 1);
+  active_status_.assign(count, StepStatus::ok);
   for (int64_t a = 0; a < count; ++a) active_system_[a] = &island_system(active_[a]);
   // The big islands not solved now (frozen, or from an earlier solve) give their factors back.
   for (auto& [hash, bucket] : systems_)
@@ -199,14 +212,16 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   };
   {
     ProfileScope scope(profile_, StepPhase::factorization);
-    run([&](int64_t a) { active_ok_[a] = active_system_[a]->factorize(values_.data()); });
+    run([&](int64_t a) { active_status_[a] = active_system_[a]->factorize(values_.data()); });
   }
   for (int64_t a = 0; a < count; ++a)
-    if (!active_ok_[a]) return a;
+    if (active_status_[a] != StepStatus::ok) return a;
   {
     ProfileScope scope(profile_, StepPhase::solve);
-    run([&](int64_t a) { active_system_[a]->solve(grad_.data(), direction_.data()); });
+    run([&](int64_t a) { active_status_[a] = active_system_[a]->solve(grad_.data(), direction_.data()); });
   }
+  for (int64_t a = 0; a < count; ++a)
+    if (active_status_[a] != StepStatus::ok) return a;
   return -1;
 }
 
@@ -245,7 +260,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     return result;
   }
   for (int it = 0; it < settings.max_iterations; ++it) {
-    potential_.prepare(x.data(), it == 0);
+    if (!prepare_potential(x.data(), it, result)) return result;
     if (potential_.pattern_version() != analyzed_version_) collect_constrained_values();
 
     // Islands at x; the ones that have not converged are assembled, factorised and solved.
@@ -273,8 +288,10 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       for (const auto& system : bucket) factor_bytes += system->factor_bytes();
     peak_factor_bytes_ = std::max(peak_factor_bytes_, factor_bytes);
     if (failed >= 0) {
-      result.status = StepStatus::factorization_failed;
-      result.message = "factorisation failed at Newton iteration " + std::to_string(it) + ": " +
+      result.status = active_status_[failed];
+      result.message = (result.status == StepStatus::factorization_failed ? "factorisation failed"
+                                                                          : "the linear solver failed") +
+                       std::string(" at Newton iteration ") + std::to_string(it) + ": " +
                        active_system_[failed]->error();
       return result;
     }

@@ -18,8 +18,10 @@
 // own motion (one global cap would let the closest impact of the scene slow every body), then
 // backtracks on its own until its own part of the energy decreases enough (Armijo). Every trial
 // point is intersection-free and its barrier is evaluated over the pairs close to the whole
-// segment. A failure is returned as a StepStatus with a sentence saying why; the solver
-// never accepts a step it could not finish.
+// segment. A failure is returned as a StepStatus with a sentence saying why, never thrown (a
+// matrix that is not positive definite, a CHOLMOD failure, a system too large for the solver's
+// tables: island_system.hpp, cholmod_solver.hpp); the solver never accepts a step it could not
+// finish.
 #pragma once
 
 #include "engine/incremental_potential.hpp"
@@ -99,10 +101,14 @@ class NewtonSolver {
   void eliminate_dirichlet(double* grad, double* values) const;
   // The value indices of constrained rows and columns, from constrained_dof_.
   void collect_constrained_values();
+  // potential_.prepare at x, for iteration `iteration`. The contact pattern refuses a system too
+  // large for its 32-bit value tables by throwing std::length_error (contact_pattern.cpp); that
+  // becomes a failed solve here (result filled in, false returned), since the solver never throws.
+  bool prepare_potential(const double* x, int iteration, NewtonResult& result);
   // The cached system of island i (created on first sight; its pattern brought up to date).
   IslandSystem& island_system(int32_t i);
-  // Factorises and solves the active islands: direction_ = -H^-1 grad_ on their DOFs. Returns
-  // the index in active_ of the first island that failed, or -1.
+  // Factorises and solves the active islands: direction_ = H^-1 grad_ on their DOFs. Returns
+  // the index in active_ of the first island that failed (active_status_ says how), or -1.
   int64_t solve_islands(int& analyses);
   // Convergence bookkeeping: a converged island's vertices share a token (islands.hpp numbers
   // change from iteration to iteration; tokens say "this exact island converged").
@@ -133,7 +139,7 @@ class NewtonSolver {
   std::vector<int32_t> active_;               // islands solved this iteration
   ActiveSubset subset_;                       // what gradient_hessian assembles
   std::vector<IslandSystem*> active_system_;  // (active_) their systems
-  std::vector<uint8_t> active_ok_;            // (active_) factorisation succeeded
+  std::vector<StepStatus> active_status_;     // (active_) of the factorisation, then the solve
   std::vector<uint8_t> active_analyzed_;      // (active_) symbolic analysis redone
   std::vector<int64_t> run_alone_, run_parallel_;  // indices into active_, by how they may run
   std::vector<int32_t> vertex_token_;         // (num_vertices) 0 = not converged

@@ -3,11 +3,14 @@
 // nonlinear problem against a much tighter solve, the Armijo condition of every
 // group at every iteration, the CCD cap that keeps each iterate on the right side of a plane (and
 // caps only the group that needs it), converged islands left alone, and on failure x at the last
-// accepted point. The solver's history (NewtonSolver::set_history) shows what each iteration did.
+// accepted point; a linear solver that fails (a Hessian that is not positive definite, CHOLMOD out
+// of memory) gives a status, not an exception, and the next solve works again. The solver's
+// history (NewtonSolver::set_history) shows what each iteration did.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/elastic_assembly.hpp"
 #include "engine/incremental_potential.hpp"
 #include "engine/solver/newton.hpp"
+#include "tests/engine/solver/suitesparse_out_of_memory.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -16,6 +19,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace nexdyn;
@@ -39,7 +43,9 @@ struct Problem {
   std::vector<NewtonIterate> history;
 
   Problem(const std::string& json, const std::string& tag, double dhat = 0.0)
-      : scene(test::scene_from_json(json, tag)),
+      : Problem(test::scene_from_json(json, tag), dhat) {}
+  explicit Problem(Scene s, double dhat = 0.0)
+      : scene(std::move(s)),
         contact(dhat > 0.0 ? std::make_unique<BarrierPotential>(model, dhat) : nullptr),
         potential(model, elastic, step_history, contact.get()),
         x_tilde(model.rest_positions),
@@ -311,4 +317,77 @@ TEST_CASE("newton: a failed solve leaves x at its last accepted point, and an in
   CHECK(inverted.message.find("tet 0 of body 0") != std::string::npos);
   CHECK(bad == bad_before);
   CHECK(p.history.empty());
+}
+
+TEST_CASE("newton: a Hessian that is not positive definite is factorization_failed on every island path") {
+  // A free box with its masses negated: the inertia term 1/2 |x - x_tilde|^2_M is then concave,
+  // and along a rigid translation, which the (projected) elastic Hessian maps to zero, the
+  // Hessian's curvature is minus the total mass. One cell is a dense island (24 DOFs), 4 x 2 x 2
+  // cells a simplicial CHOLMOD one (135), 5 x 4 x 4 a supernodal one (450).
+  struct Case {
+    const char* cells;
+    const char* reason;
+  };
+  for (const Case c : {Case{"[1, 1, 1]", "matrix not positive definite (dense island of 24 DOFs)"},
+                       Case{"[4, 2, 2]", "matrix not positive definite at column "},
+                       Case{"[5, 4, 4]", "matrix not positive definite at column "}}) {
+    CAPTURE(c.cells);
+    Scene scene = test::scene_from_json(std::string(R"({
+      "gravity": [0, -9.81, 0], "time": { "dt": 0.1 },
+      "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+      "bodies": [ { "box": { "size": [0.4, 0.3, 0.3], "cells": )") + c.cells + R"( }, "material": "m" } ]
+    })", "newton_indefinite");
+    for (double& m : scene.model.mass) m = -m;
+    Problem p(std::move(scene));
+    for (int32_t v = 0; v < p.model.num_vertices; ++v) p.x_tilde[3 * v] += 0.01;
+    std::vector<double> x = p.model.rest_positions;
+    NewtonResult r;
+    REQUIRE_NOTHROW(r = p.solve(x, 1e-5));
+    CHECK(r.status == StepStatus::factorization_failed);
+    CHECK(r.message.rfind(std::string("factorisation failed at Newton iteration 0: ") + c.reason, 0) == 0);
+    CHECK(r.iterations == 0);
+    CHECK(x == p.model.rest_positions);  // bit for bit
+    CHECK(p.history.empty());
+  }
+}
+
+TEST_CASE("newton: CHOLMOD out of memory is linear_solver_failed, x untouched, and the next solve is as if it had not been") {
+  Problem p(bar_json(false), "newton_out_of_memory");
+  bend_x_tilde(p);
+  const std::vector<double> x0 = p.model.rest_positions;
+  const std::string prefix = "the linear solver failed at Newton iteration 0: ";
+
+  // The bar's island (162 DOFs, simplicial CHOLMOD) cannot be analysed.
+  std::vector<double> x = x0;
+  NewtonResult r;
+  {
+    test::SuiteSparseOutOfMemory no_memory;
+    REQUIRE_NOTHROW(r = p.solve(x, 1e-5));
+  }
+  CHECK(r.status == StepStatus::linear_solver_failed);
+  CHECK(r.message.rfind(prefix + "CHOLMOD symbolic analysis of a 162 x 162 matrix with ", 0) == 0);
+  CHECK(r.message.find("failed: out of memory (CHOLMOD_OUT_OF_MEMORY)") != std::string::npos);
+  CHECK(x == x0);
+  CHECK(p.history.empty());
+
+  // With memory again the island is analysed afresh and the solve converges.
+  std::vector<double> reference = x0;
+  REQUIRE(p.solve(reference, 1e-5).status == StepStatus::ok);
+  CHECK(reference != x0);
+
+  // The analysis is kept now: the numeric factorisation is what fails.
+  p.history.clear();
+  {
+    test::SuiteSparseOutOfMemory no_memory;
+    REQUIRE_NOTHROW(r = p.solve(x, 1e-5));
+  }
+  CHECK(r.status == StepStatus::linear_solver_failed);
+  CHECK(r.message == prefix + "CHOLMOD numeric factorisation of a 162 x 162 matrix failed: out of memory "
+                              "(CHOLMOD_OUT_OF_MEMORY)");
+  CHECK(x == x0);
+  CHECK(p.history.empty());
+
+  // And the same solve once more with memory: the same point as before, bit for bit.
+  REQUIRE(p.solve(x, 1e-5).status == StepStatus::ok);
+  CHECK(x == reference);
 }
