@@ -8,20 +8,15 @@
 
 #include "engine/integrator.hpp"
 #include "engine/model.hpp"
+#include "engine/scene/scene_error.hpp"
 #include "engine/state.hpp"
 
 #include <cstdint>
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace nexdyn {
-
-class SceneError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 struct TimeSettings {
   double dt = 0.01;                  // [s]
