@@ -80,6 +80,40 @@ std::string format_double(double x) {
   return buffer;
 }
 
+// Node tag -> node index: a direct table when tags are dense (the usual 1..N), else binary search
+// in the sorted tags, so a file with tags near 2^60 needs no giant table.
+class NodeTagIndex {
+ public:
+  // `tags` in file order, `by_tag` their indices in increasing tag order (tags unique).
+  NodeTagIndex(const std::vector<int64_t>& tags, const std::vector<int64_t>& by_tag)
+      : by_tag_(by_tag) {
+    const int64_t num_nodes = static_cast<int64_t>(tags.size());
+    min_tag_ = num_nodes ? tags[by_tag.front()] : 0;
+    max_tag_ = num_nodes ? tags[by_tag.back()] : -1;
+    dense_ = num_nodes > 0 && max_tag_ - min_tag_ <= 4 * num_nodes + 1024;
+    if (dense_) {
+      table_.assign(static_cast<std::size_t>(max_tag_ - min_tag_ + 1), -1);
+      for (int64_t i = 0; i < num_nodes; ++i) table_[tags[i] - min_tag_] = i;
+    } else {
+      sorted_tags_.resize(static_cast<std::size_t>(num_nodes));
+      for (int64_t k = 0; k < num_nodes; ++k) sorted_tags_[k] = tags[by_tag[k]];
+    }
+  }
+  // The index of the node tagged `tag`, -1 when there is none.
+  int64_t operator()(int64_t tag) const {
+    if (dense_) return (tag < min_tag_ || tag > max_tag_) ? -1 : table_[tag - min_tag_];
+    const auto it = std::lower_bound(sorted_tags_.begin(), sorted_tags_.end(), tag);
+    return (it == sorted_tags_.end() || *it != tag) ? -1 : by_tag_[it - sorted_tags_.begin()];
+  }
+
+ private:
+  const std::vector<int64_t>& by_tag_;
+  int64_t min_tag_ = 0, max_tag_ = -1;
+  bool dense_ = false;
+  std::vector<int64_t> table_;        // dense: index by tag - min_tag, -1 for no node
+  std::vector<int64_t> sorted_tags_;  // sparse: the tags in increasing order
+};
+
 class MshParser {
  public:
   MshParser(std::string_view text, std::string_view source_name)
@@ -435,6 +469,22 @@ class MshParser {
   }
 
   // ---- tags to ids ----------------------------------------------------------------------------
+  // Node indices in increasing tag order; fails on a tag given twice. Files almost always list
+  // tags in increasing order; only sort otherwise.
+  std::vector<int64_t> nodes_by_tag() const {
+    const std::vector<int64_t>& tags = raw_.node_tags;
+    const int64_t num_nodes = static_cast<int64_t>(tags.size());
+    std::vector<int64_t> by_tag(static_cast<std::size_t>(num_nodes));
+    std::iota(by_tag.begin(), by_tag.end(), int64_t{0});
+    if (!std::is_sorted(tags.begin(), tags.end()))
+      std::sort(by_tag.begin(), by_tag.end(),
+                [&](int64_t a, int64_t b) { return tags[a] < tags[b]; });
+    for (int64_t k = 1; k < num_nodes; ++k)
+      if (tags[by_tag[k]] == tags[by_tag[k - 1]])
+        fail_file("node tag " + std::to_string(tags[by_tag[k]]) + " is defined twice in $Nodes");
+    return by_tag;
+  }
+
   TetMesh build_mesh(MshReadStats* stats) {
     const int64_t num_tets = static_cast<int64_t>(raw_.tet_tags.size());
     if (num_tets == 0) {
@@ -449,37 +499,9 @@ class MshParser {
     if (num_tets > std::numeric_limits<int32_t>::max() / 4)
       fail_file(std::to_string(num_tets) + " tets do not fit in 32-bit ids");
 
-    // Node order by tag. Files almost always list tags in increasing order; only sort otherwise.
-    const std::vector<int64_t>& tags = raw_.node_tags;
-    const int64_t num_nodes = static_cast<int64_t>(tags.size());
-    std::vector<int64_t> by_tag(static_cast<std::size_t>(num_nodes));
-    std::iota(by_tag.begin(), by_tag.end(), int64_t{0});
-    if (!std::is_sorted(tags.begin(), tags.end()))
-      std::sort(by_tag.begin(), by_tag.end(),
-                [&](int64_t a, int64_t b) { return tags[a] < tags[b]; });
-    for (int64_t k = 1; k < num_nodes; ++k)
-      if (tags[by_tag[k]] == tags[by_tag[k - 1]])
-        fail_file("node tag " + std::to_string(tags[by_tag[k]]) + " is defined twice in $Nodes");
-
-    // Tag -> node index: a direct table when tags are dense (the usual 1..N), else binary search
-    // in the sorted tags, so a file with tags near 2^60 needs no giant table.
-    const int64_t min_tag = num_nodes ? tags[by_tag.front()] : 0;
-    const int64_t max_tag = num_nodes ? tags[by_tag.back()] : -1;
-    const bool dense = num_nodes > 0 && max_tag - min_tag <= 4 * num_nodes + 1024;
-    std::vector<int64_t> table;
-    std::vector<int64_t> sorted_tags;
-    if (dense) {
-      table.assign(static_cast<std::size_t>(max_tag - min_tag + 1), -1);
-      for (int64_t i = 0; i < num_nodes; ++i) table[tags[i] - min_tag] = i;
-    } else {
-      sorted_tags.resize(static_cast<std::size_t>(num_nodes));
-      for (int64_t k = 0; k < num_nodes; ++k) sorted_tags[k] = tags[by_tag[k]];
-    }
-    auto node_index = [&](int64_t tag) -> int64_t {
-      if (dense) return (tag < min_tag || tag > max_tag) ? -1 : table[tag - min_tag];
-      const auto it = std::lower_bound(sorted_tags.begin(), sorted_tags.end(), tag);
-      return (it == sorted_tags.end() || *it != tag) ? -1 : by_tag[it - sorted_tags.begin()];
-    };
+    const std::vector<int64_t> by_tag = nodes_by_tag();
+    const int64_t num_nodes = static_cast<int64_t>(by_tag.size());
+    const NodeTagIndex node_index(raw_.node_tags, by_tag);
 
     // Resolve tet node tags, mark used nodes.
     std::vector<int64_t> tet_node_index(raw_.tet_nodes.size());
