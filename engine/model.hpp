@@ -2,8 +2,9 @@
 //
 // MuJoCo-style flat buffers: one contiguous array per attribute, indexed by global vertex or tet
 // id, each declared once here with its shape and units. Bodies are ranges of those arrays, not
-// objects. The only writer is the scene builder (engine/scene/build_model.cpp); every stage of a
-// step reads the Model through a const reference.
+// objects. Only scene loading writes it (engine/scene/: load_scene sets gravity and materials, the
+// model builder build_model.cpp appends everything else); every stage of a step reads the Model
+// through a const reference.
 #pragma once
 
 #include "engine/integrator.hpp"

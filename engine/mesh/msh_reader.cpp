@@ -1,7 +1,7 @@
 // Gmsh ASCII .msh 2.2 / 4.1 reader (what it accepts and rejects: msh_reader.hpp).
 //
-// The file is read into memory in one go and parsed by a cursor that skips whitespace and counts
-// lines, so every error can say where it happened. Parsing keeps raw tags (nodes and tets may
+// The file is read into memory in one go and parsed with a TextCursor (text_cursor.hpp), which
+// skips whitespace and counts lines, so every error can say where it happened. Parsing keeps raw tags (nodes and tets may
 // come in any order, tags need not be contiguous), then one pass maps tags to compact ids.
 // Numbers are parsed with std::from_chars: locale-free, exact (round-trips what Gmsh wrote) and
 // allocation-free, so a 3 MB mesh loads in milliseconds.
@@ -19,17 +19,15 @@
 #include "engine/mesh/msh_reader.hpp"
 
 #include "engine/mesh/mesh_file.hpp"
+#include "engine/mesh/text_cursor.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <string>
-#include <system_error>
 #include <vector>
 
 namespace nexdyn {
@@ -61,25 +59,11 @@ struct RawMesh {
   int64_t skipped_quadratic_tets = 0;  // type 11: worth naming when no linear tet is found
 };
 
-bool is_space(char c) {
-  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
-}
-bool is_inline_space(char c) {
-  return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
-  while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
-  return s;
-}
-
 // Shortens a token for quoting in a message (binary junk or a whole line would be unreadable).
 std::string quote(std::string_view token) {
-  std::string out;
-  for (char c : token.substr(0, 40)) out += (c >= 32 && c < 127) ? c : '?';
-  if (token.size() > 40) out += "...";
-  return "'" + out + "'";
+  std::string out = "'";  // appended, not "'" + excerpt(...): GCC 12 warns of a false -Wrestrict
+  out += excerpt(token, HighBytes::replaced);
+  return out + "'";
 }
 
 // "$Name" of a section for a message: as it is when short and printable, else quoted, since
@@ -96,16 +80,50 @@ std::string format_double(double x) {
   return buffer;
 }
 
+// Node tag -> node index: a direct table when tags are dense (the usual 1..N), else binary search
+// in the sorted tags, so a file with tags near 2^60 needs no giant table.
+class NodeTagIndex {
+ public:
+  // `tags` in file order, `by_tag` their indices in increasing tag order (tags unique).
+  NodeTagIndex(const std::vector<int64_t>& tags, const std::vector<int64_t>& by_tag)
+      : by_tag_(by_tag) {
+    const int64_t num_nodes = static_cast<int64_t>(tags.size());
+    min_tag_ = num_nodes ? tags[by_tag.front()] : 0;
+    max_tag_ = num_nodes ? tags[by_tag.back()] : -1;
+    dense_ = num_nodes > 0 && max_tag_ - min_tag_ <= 4 * num_nodes + 1024;
+    if (dense_) {
+      table_.assign(static_cast<std::size_t>(max_tag_ - min_tag_ + 1), -1);
+      for (int64_t i = 0; i < num_nodes; ++i) table_[tags[i] - min_tag_] = i;
+    } else {
+      sorted_tags_.resize(static_cast<std::size_t>(num_nodes));
+      for (int64_t k = 0; k < num_nodes; ++k) sorted_tags_[k] = tags[by_tag[k]];
+    }
+  }
+  // The index of the node tagged `tag`, -1 when there is none.
+  int64_t operator()(int64_t tag) const {
+    if (dense_) return (tag < min_tag_ || tag > max_tag_) ? -1 : table_[tag - min_tag_];
+    const auto it = std::lower_bound(sorted_tags_.begin(), sorted_tags_.end(), tag);
+    return (it == sorted_tags_.end() || *it != tag) ? -1 : by_tag_[it - sorted_tags_.begin()];
+  }
+
+ private:
+  const std::vector<int64_t>& by_tag_;
+  int64_t min_tag_ = 0, max_tag_ = -1;
+  bool dense_ = false;
+  std::vector<int64_t> table_;        // dense: index by tag - min_tag, -1 for no node
+  std::vector<int64_t> sorted_tags_;  // sparse: the tags in increasing order
+};
+
 class MshParser {
  public:
   MshParser(std::string_view text, std::string_view source_name)
-      : text_(text), name_(source_name) {}
+      : cursor_(text, source_name) {}
 
   TetMesh parse(MshReadStats* stats) {
     while (true) {
-      skip_space();
-      if (pos_ == text_.size()) break;
-      const int64_t header_line = line_;
+      cursor_.skip_space();
+      if (cursor_.at_end()) break;
+      const int64_t header_line = cursor_.line();
       const std::string_view header = read_line();
       if (header.empty() || header.front() != '$') continue;  // Gmsh ignores text between sections
       const std::string_view name = header.substr(1);
@@ -139,12 +157,9 @@ class MshParser {
 
  private:
   // ---- errors ---------------------------------------------------------------------------------
-  [[noreturn]] void fail_file(const std::string& what) const {
-    throw MeshError(std::string(name_) + ": " + what);
-  }
-  [[noreturn]] void fail(int64_t line, const std::string& what) const {
-    throw MeshError(std::string(name_) + ": line " + std::to_string(line) + ": " + what);
-  }
+  [[noreturn]] void fail_file(const std::string& what) const { cursor_.fail_file(what); }
+  [[noreturn]] void fail(int64_t line, const std::string& what) const { cursor_.fail_at(line, what); }
+  [[noreturn]] void fail_here(const std::string& what) const { fail(cursor_.line(), what); }
   // Describes the node or element being read, so that truncation and syntax errors name it.
   std::string item_description() const {
     if (item_kind_ == nullptr || (item_tag_ < 0 && last_item_tag_ < 0)) return "";
@@ -152,95 +167,64 @@ class MshParser {
            std::to_string(item_tag_ >= 0 ? item_tag_ : last_item_tag_);
   }
   [[noreturn]] void fail_eof() const {
-    fail(line_, "unexpected end of file inside $" + std::string(section_) + " (opened at line " +
-                    std::to_string(section_line_) + ")" + item_description() +
-                    "; the file is truncated");
+    fail_here("unexpected end of file inside $" + std::string(section_) + " (opened at line " +
+              std::to_string(section_line_) + ")" + item_description() + "; the file is truncated");
   }
 
-  // ---- cursor ---------------------------------------------------------------------------------
-  void skip_space() {
-    while (pos_ < text_.size() && is_space(text_[pos_])) {
-      if (text_[pos_] == '\n') ++line_;
-      ++pos_;
-    }
-  }
+  // ---- tokens ---------------------------------------------------------------------------------
   // Rest of the current line, trimmed; the cursor moves to the start of the next line.
-  std::string_view read_line() {
-    const std::size_t begin = pos_;
-    while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
-    const std::string_view line = text_.substr(begin, pos_ - begin);
-    if (pos_ < text_.size()) {
-      ++pos_;
-      ++line_;
-    }
-    return trim(line);
-  }
-  void skip_line() { read_line(); }
+  std::string_view read_line() { return trim(cursor_.read_line()); }
+  void skip_line() { cursor_.read_line(); }
   std::string_view next_token(const char* what) {
-    skip_space();
-    if (pos_ == text_.size()) fail_eof();
-    const std::size_t begin = pos_;
-    while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
-    const std::string_view token = text_.substr(begin, pos_ - begin);
+    const std::string_view token = cursor_.next_word();
+    if (token.empty()) fail_eof();
     if (token.front() == '$')
-      fail(line_, "$" + std::string(section_) + " ends early: expected " + what + ", found " +
-                      quote(token) + item_description() +
-                      " (the section holds fewer entries than it declares)");
+      fail_here("$" + std::string(section_) + " ends early: expected " + what + ", found " +
+                quote(token) + item_description() +
+                " (the section holds fewer entries than it declares)");
     return token;
   }
   int64_t read_int(const char* what) {
     const std::string_view token = next_token(what);
     int64_t value = 0;
-    const char* first = token.data();
-    if (*first == '+') ++first;
-    const auto [end, error] = std::from_chars(first, token.data() + token.size(), value);
-    if (error == std::errc::result_out_of_range)
-      fail(line_, std::string(what) + " " + quote(token) + " is out of range" + item_description());
-    if (error != std::errc() || end != token.data() + token.size())
-      fail(line_, "expected " + std::string(what) + ", found " + quote(token) + item_description());
+    const NumberParse parsed = parse_integer(token, LeadingPlus::accepted, value);
+    if (parsed == NumberParse::out_of_range)
+      fail_here(std::string(what) + " " + quote(token) + " is out of range" + item_description());
+    if (parsed != NumberParse::ok)
+      fail_here("expected " + std::string(what) + ", found " + quote(token) + item_description());
     return value;
   }
   int64_t read_non_negative(const char* what) {
     const int64_t value = read_int(what);
     if (value < 0)
-      fail(line_, std::string(what) + " must not be negative, found " + std::to_string(value) +
-                      item_description());
+      fail_here(std::string(what) + " must not be negative, found " + std::to_string(value) +
+                item_description());
     return value;
   }
+  // Out of range: overflow gives +-HUGE_VAL, caught as non-finite by the caller; underflow a
+  // harmless 0 or subnormal.
   double read_double(const char* what) {
     const std::string_view token = next_token(what);
     double value = 0.0;
-    const char* first = token.data();
-    if (*first == '+') ++first;
-    const auto [end, error] = std::from_chars(first, token.data() + token.size(), value);
-    if (end != token.data() + token.size() ||
-        (error != std::errc() && error != std::errc::result_out_of_range))
-      fail(line_, "expected " + std::string(what) + ", found " + quote(token) + item_description());
-    // Out of range: from_chars leaves the value unspecified, strtod tells overflow (+-HUGE_VAL,
-    // caught as non-finite by the caller) from underflow (a harmless 0 or subnormal).
-    if (error == std::errc::result_out_of_range)
-      value = std::strtod(std::string(token).c_str(), nullptr);
+    if (parse_double(token, LeadingPlus::accepted, value) == NumberParse::malformed)
+      fail_here("expected " + std::string(what) + ", found " + quote(token) + item_description());
     return value;
   }
   // Entries must end their line: trailing numbers mean the file does not say what we think it
   // says (a wrong element type, a 4.0 file read as 4.1), and going on would misread the rest.
   void expect_line_end(const char* what) {
-    while (pos_ < text_.size() && is_inline_space(text_[pos_])) ++pos_;
-    if (pos_ < text_.size() && text_[pos_] != '\n') {
-      const std::size_t begin = pos_;
-      while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
-      fail(line_, "unexpected " + quote(text_.substr(begin, pos_ - begin)) + " after " + what +
-                      item_description());
-    }
+    cursor_.skip_inline_space();
+    if (!cursor_.at_line_end())
+      fail_here("unexpected " + quote(cursor_.read_word()) + " after " + what + item_description());
   }
   // A count read from the file must fit in what is left of the file: this is what stops a
   // corrupt header from requesting a giant allocation.
   void check_count(int64_t count, int64_t min_bytes_each, const char* what) {
-    const int64_t remaining = static_cast<int64_t>(text_.size() - pos_);
+    const int64_t remaining = static_cast<int64_t>(cursor_.remaining());
     if (count > remaining / min_bytes_each)
-      fail(line_, "$" + std::string(section_) + " declares " + std::to_string(count) + " " + what +
-                      " but only " + std::to_string(remaining) +
-                      " bytes remain in the file (corrupt or truncated count)");
+      fail_here("$" + std::string(section_) + " declares " + std::to_string(count) + " " + what +
+                " but only " + std::to_string(remaining) +
+                " bytes remain in the file (corrupt or truncated count)");
   }
   void begin_item(const char* kind) {
     item_kind_ = kind;
@@ -280,9 +264,9 @@ class MshParser {
 
   void expect_section_end() {
     item_kind_ = nullptr;
-    skip_space();
-    if (pos_ == text_.size()) fail_eof();
-    const int64_t line = line_;
+    cursor_.skip_space();
+    if (cursor_.at_end()) fail_eof();
+    const int64_t line = cursor_.line();
     const std::string_view found = read_line();
     if (found.size() != section_.size() + 4 || found.substr(0, 4) != "$End" ||
         found.substr(4) != section_)
@@ -292,13 +276,13 @@ class MshParser {
   }
 
   void skip_section(std::string_view name, int64_t header_line) {
-    while (pos_ < text_.size()) {
+    while (!cursor_.at_end()) {
       const std::string_view line = read_line();
       if (line.size() == name.size() + 4 && line.substr(0, 4) == "$End" && line.substr(4) == name)
         return;
     }
-    fail(line_, "unexpected end of file inside " + section_text(name) + " (opened at line " +
-                    std::to_string(header_line) + "); the file is truncated");
+    fail_here("unexpected end of file inside " + section_text(name) + " (opened at line " +
+              std::to_string(header_line) + "); the file is truncated");
   }
 
   void reserve_nodes(int64_t count) {
@@ -311,9 +295,8 @@ class MshParser {
     for (int d = 0; d < 3; ++d) {
       const double x = read_double("a node coordinate");
       if (!std::isfinite(x))
-        fail(line_, "node " + std::to_string(tag) + " has a non-finite coordinate (" +
-                        (std::isnan(x) ? std::string("nan") : std::string(x > 0 ? "inf" : "-inf")) +
-                        ")");
+        fail_here("node " + std::to_string(tag) + " has a non-finite coordinate (" +
+                  (std::isnan(x) ? std::string("nan") : std::string(x > 0 ? "inf" : "-inf")) + ")");
       raw_.node_xyz.push_back(x);
     }
   }
@@ -346,7 +329,7 @@ class MshParser {
     int64_t total = 0;
     for (int64_t b = 0; b < num_blocks; ++b) {
       item_kind_ = nullptr;
-      const int64_t header_line = line_;
+      const int64_t header_line = cursor_.line();
       const int64_t entity_dim = read_int("entity dimension");
       read_int("entity tag");
       const int64_t parametric = read_int("parametric flag");
@@ -386,8 +369,8 @@ class MshParser {
       }
     }
     if (total != count)
-      fail(line_, "node blocks hold " + std::to_string(total) +
-                      " nodes but the $Nodes header declares " + std::to_string(count));
+      fail_here("node blocks hold " + std::to_string(total) +
+                " nodes but the $Nodes header declares " + std::to_string(count));
   }
 
   void add_tet(int64_t tag, int64_t line, const int64_t nodes[4]) {
@@ -415,7 +398,7 @@ class MshParser {
       begin_item("element");
       const int64_t tag = read_non_negative("element tag");
       set_item_tag(tag);
-      const int64_t line = line_;
+      const int64_t line = cursor_.line();
       const int64_t type = read_int("element type");
       if (type != kLinearTetType) {
         skip_element(type);
@@ -446,7 +429,7 @@ class MshParser {
     int64_t total = 0;
     for (int64_t b = 0; b < num_blocks; ++b) {
       item_kind_ = nullptr;
-      const int64_t header_line = line_;
+      const int64_t header_line = cursor_.line();
       read_int("entity dimension");
       read_int("entity tag");
       const int64_t type = read_int("element type");
@@ -467,7 +450,7 @@ class MshParser {
         begin_item("element");
         const int64_t tag = read_non_negative("element tag");
         set_item_tag(tag);
-        const int64_t line = line_;
+        const int64_t line = cursor_.line();
         if (type != kLinearTetType) {
           skip_element(type);
           end_item();
@@ -481,11 +464,27 @@ class MshParser {
       }
     }
     if (total != count)
-      fail(line_, "element blocks hold " + std::to_string(total) +
-                      " elements but the $Elements header declares " + std::to_string(count));
+      fail_here("element blocks hold " + std::to_string(total) +
+                " elements but the $Elements header declares " + std::to_string(count));
   }
 
   // ---- tags to ids ----------------------------------------------------------------------------
+  // Node indices in increasing tag order; fails on a tag given twice. Files almost always list
+  // tags in increasing order; only sort otherwise.
+  std::vector<int64_t> nodes_by_tag() const {
+    const std::vector<int64_t>& tags = raw_.node_tags;
+    const int64_t num_nodes = static_cast<int64_t>(tags.size());
+    std::vector<int64_t> by_tag(static_cast<std::size_t>(num_nodes));
+    std::iota(by_tag.begin(), by_tag.end(), int64_t{0});
+    if (!std::is_sorted(tags.begin(), tags.end()))
+      std::sort(by_tag.begin(), by_tag.end(),
+                [&](int64_t a, int64_t b) { return tags[a] < tags[b]; });
+    for (int64_t k = 1; k < num_nodes; ++k)
+      if (tags[by_tag[k]] == tags[by_tag[k - 1]])
+        fail_file("node tag " + std::to_string(tags[by_tag[k]]) + " is defined twice in $Nodes");
+    return by_tag;
+  }
+
   TetMesh build_mesh(MshReadStats* stats) {
     const int64_t num_tets = static_cast<int64_t>(raw_.tet_tags.size());
     if (num_tets == 0) {
@@ -500,37 +499,9 @@ class MshParser {
     if (num_tets > std::numeric_limits<int32_t>::max() / 4)
       fail_file(std::to_string(num_tets) + " tets do not fit in 32-bit ids");
 
-    // Node order by tag. Files almost always list tags in increasing order; only sort otherwise.
-    const std::vector<int64_t>& tags = raw_.node_tags;
-    const int64_t num_nodes = static_cast<int64_t>(tags.size());
-    std::vector<int64_t> by_tag(static_cast<std::size_t>(num_nodes));
-    std::iota(by_tag.begin(), by_tag.end(), int64_t{0});
-    if (!std::is_sorted(tags.begin(), tags.end()))
-      std::sort(by_tag.begin(), by_tag.end(),
-                [&](int64_t a, int64_t b) { return tags[a] < tags[b]; });
-    for (int64_t k = 1; k < num_nodes; ++k)
-      if (tags[by_tag[k]] == tags[by_tag[k - 1]])
-        fail_file("node tag " + std::to_string(tags[by_tag[k]]) + " is defined twice in $Nodes");
-
-    // Tag -> node index: a direct table when tags are dense (the usual 1..N), else binary search
-    // in the sorted tags, so a file with tags near 2^60 needs no giant table.
-    const int64_t min_tag = num_nodes ? tags[by_tag.front()] : 0;
-    const int64_t max_tag = num_nodes ? tags[by_tag.back()] : -1;
-    const bool dense = num_nodes > 0 && max_tag - min_tag <= 4 * num_nodes + 1024;
-    std::vector<int64_t> table;
-    std::vector<int64_t> sorted_tags;
-    if (dense) {
-      table.assign(static_cast<std::size_t>(max_tag - min_tag + 1), -1);
-      for (int64_t i = 0; i < num_nodes; ++i) table[tags[i] - min_tag] = i;
-    } else {
-      sorted_tags.resize(static_cast<std::size_t>(num_nodes));
-      for (int64_t k = 0; k < num_nodes; ++k) sorted_tags[k] = tags[by_tag[k]];
-    }
-    auto node_index = [&](int64_t tag) -> int64_t {
-      if (dense) return (tag < min_tag || tag > max_tag) ? -1 : table[tag - min_tag];
-      const auto it = std::lower_bound(sorted_tags.begin(), sorted_tags.end(), tag);
-      return (it == sorted_tags.end() || *it != tag) ? -1 : by_tag[it - sorted_tags.begin()];
-    };
+    const std::vector<int64_t> by_tag = nodes_by_tag();
+    const int64_t num_nodes = static_cast<int64_t>(by_tag.size());
+    const NodeTagIndex node_index(raw_.node_tags, by_tag);
 
     // Resolve tet node tags, mark used nodes.
     std::vector<int64_t> tet_node_index(raw_.tet_nodes.size());
@@ -580,10 +551,7 @@ class MshParser {
     return mesh;
   }
 
-  std::string_view text_;
-  std::string_view name_;
-  std::size_t pos_ = 0;
-  int64_t line_ = 1;  // line of the character at pos_
+  TextCursor cursor_;
   MshVersion version_ = MshVersion::kUnknown;
   std::string_view section_ = "";  // name of the section being parsed, for messages
   int64_t section_line_ = 0;

@@ -1,34 +1,28 @@
 // Wavefront .obj reader (what it accepts and rejects: obj_reader.hpp).
 //
-// The file is read into memory in one go and walked line by line as string_views; numbers are
-// parsed with std::from_chars (locale-free, no allocation). Text quoted in a message is cut to 40
-// characters with control bytes shown as '?', so that every message stays one short line
-// whatever the file holds.
+// The file is read into memory in one go and walked line by line, and each line word by word, with
+// TextCursors (text_cursor.hpp): string_views, numbers parsed by std::from_chars (locale-free, no
+// allocation). Text quoted in a message is cut to 40 characters with control bytes shown as '?',
+// so that every message stays one short line whatever the file holds.
 #include "engine/mesh/obj_reader.hpp"
 
 #include "engine/mesh/mesh_file.hpp"
+#include "engine/mesh/text_cursor.hpp"
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <optional>
 #include <string>
-#include <system_error>
 
 namespace nexdyn {
 namespace {
 
-bool is_space(char c) {
-  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
-}
-
 // `text` in double quotes for a message: at most 40 characters, control bytes as '?'.
 std::string quoted(std::string_view text) {
-  std::string out = "\"";
-  for (char c : text.substr(0, 40)) out += (static_cast<unsigned char>(c) >= 32 && c != 127) ? c : '?';
-  if (text.size() > 40) out += "...";
+  std::string out = "\"";  // appended, not "\"" + excerpt(...): GCC 12 warns of a false -Wrestrict
+  out += excerpt(text, HighBytes::kept);
   return out + "\"";
 }
 
@@ -38,8 +32,7 @@ std::string quoted(std::string_view text) {
 // or out of range; the caller names the line.
 std::optional<int32_t> obj_vertex_index(std::string_view corner, int64_t vertices_so_far) {
   auto parse = [](std::string_view text, int64_t& value) {
-    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-    return error == std::errc() && end == text.data() + text.size();
+    return parse_integer(text, LeadingPlus::rejected, value) == NumberParse::ok;
   };
   // Split at '/': at most three parts; the texture and normal parts are checked, then ignored.
   std::string_view parts[3];
@@ -73,34 +66,25 @@ bool is_degenerate_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, 
 
 ObjMesh parse_obj(std::string_view text, std::string_view source_name) {
   ObjMesh mesh;
+  TextCursor cursor(text, source_name);
   int64_t line_number = 0;
-  auto fail = [&](const std::string& what) {
-    throw MeshError(std::string(source_name) + ": line " + std::to_string(line_number) + ": " + what);
-  };
+  auto fail = [&](const std::string& what) { cursor.fail_at(line_number, what); };
   std::vector<std::string_view> tokens;
   std::vector<int32_t> corners;
-  for (size_t begin = 0; begin < text.size();) {
-    size_t end = text.find('\n', begin);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(begin, end - begin);
-    begin = end + 1;
-    ++line_number;
+  while (!cursor.at_end()) {
+    line_number = cursor.line();
+    std::string_view line = cursor.read_line();
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);  // files written on Windows
     tokens.clear();
-    for (size_t i = 0; i < line.size();) {
-      while (i < line.size() && is_space(line[i])) ++i;
-      const size_t start = i;
-      while (i < line.size() && !is_space(line[i])) ++i;
-      if (i > start) tokens.push_back(line.substr(start, i - start));
-    }
+    TextCursor words(line, source_name);
+    for (std::string_view word = words.next_word(); !word.empty(); word = words.next_word()) tokens.push_back(word);
     if (tokens.empty()) continue;
     if (tokens[0] == "v") {
       // x y z, optionally followed by w or by r g b vertex colours, which are ignored.
       if (tokens.size() < 4) fail("expected \"v x y z\", got " + quoted(line));
       for (size_t t = 1; t < tokens.size(); ++t) {
         double value = 0.0;
-        const auto [last, error] = std::from_chars(tokens[t].data(), tokens[t].data() + tokens[t].size(), value);
-        if (error != std::errc() || last != tokens[t].data() + tokens[t].size() || !std::isfinite(value))
+        if (parse_double(tokens[t], LeadingPlus::rejected, value) != NumberParse::ok || !std::isfinite(value))
           fail("expected a finite number, got " + quoted(tokens[t]));
         if (t <= 3) mesh.positions.push_back(value);
       }
@@ -125,7 +109,7 @@ ObjMesh parse_obj(std::string_view text, std::string_view source_name) {
       }
     }
   }
-  if (mesh.triangles.empty()) throw MeshError(std::string(source_name) + ": no faces (\"f\" lines)");
+  if (mesh.triangles.empty()) cursor.fail_file("no faces (\"f\" lines)");
   return mesh;
 }
 

@@ -4,24 +4,22 @@
 // types, out-of-range values and missing files throw SceneError naming the file, the key path
 // (e.g. "bodies[2].material") and the offending value, on one line. Nothing is written while
 // loading.
+//
+// load_scene (scene.cpp) is built from three layers: the strict JSON reader (json_reader.hpp),
+// the settings readers (settings_readers.hpp) and the model builder (build_model.hpp).
 #pragma once
 
 #include "engine/integrator.hpp"
 #include "engine/model.hpp"
+#include "engine/scene/scene_error.hpp"
 #include "engine/state.hpp"
 
 #include <cstdint>
 #include <filesystem>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace nexdyn {
-
-class SceneError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 struct TimeSettings {
   double dt = 0.01;                  // [s]

@@ -75,19 +75,28 @@ inline Eigen::Matrix3d deformation_gradient(const Matrix34d& x, const Eigen::Mat
   return Ds * Dm_inv;
 }
 
-// Rest-shape data of a tet with rest corners X: Dm^-1 and volume = det(Dm)/6. Returns false (and
-// leaves the outputs unspecified) when det(Dm) <= 0: a degenerate or negatively oriented tet, which
-// the mesh loader must reject or reorient (swap two corners).
+// Rest-shape data of a tet from its rest edge matrix Dm = [X1-X0, X2-X0, X3-X0]: Dm^-1 and
+// volume = det(Dm)/6, both written in every case (the volume signed, for the caller's message).
+// Returns false when det(Dm) <= 0 (or is NaN): a degenerate or negatively oriented tet, which the
+// mesh loader must reject or reorient (swap two corners); Dm_inv is then not finite or meaningless.
+//
+// Both are computed before the test, in one branch-free run: the determinant and the inverse's
+// cofactors share products, and GCC fuses a product into an FMA only when all its uses are in the
+// same basic block, so a branch between them would change the last bits of both.
+inline bool tet_rest_shape_from_edges(const Eigen::Matrix3d& Dm, Eigen::Matrix3d& Dm_inv, double& volume) {
+  const double det = Dm.determinant();
+  volume = det / 6.0;
+  Dm_inv = Dm.inverse();
+  return det > 0.0;
+}
+
+// The same from the rest corners X (columns).
 inline bool tet_rest_shape(const Matrix34d& X, Eigen::Matrix3d& Dm_inv, double& volume) {
   Eigen::Matrix3d Dm;
   Dm.col(0) = X.col(1) - X.col(0);
   Dm.col(1) = X.col(2) - X.col(0);
   Dm.col(2) = X.col(3) - X.col(0);
-  const double det = Dm.determinant();
-  if (!(det > 0.0)) return false;
-  Dm_inv = Dm.inverse();
-  volume = det / 6.0;
-  return true;
+  return tet_rest_shape_from_edges(Dm, Dm_inv, volume);
 }
 
 namespace detail {

@@ -1,0 +1,479 @@
+// The model builder's bodies, boundary conditions and joints (see build_model.hpp; obstacles are
+// in build_obstacles.cpp).
+#include "engine/scene/build_model.hpp"
+
+#include "engine/mesh/box_mesher.hpp"
+#include "engine/mesh/msh_reader.hpp"
+#include "engine/mesh/surface.hpp"
+#include "engine/mesh/tet_mesh.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
+#include "kernels/elasticity/elasticity.hpp"
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+#include <utility>
+
+namespace nexdyn::scene_io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// ---- bodies --------------------------------------------------------------------------------------
+
+// A body's mesh and its surface, read or built once per file or box.
+using BodyMesh = std::pair<TetMesh, SurfaceMesh>;
+
+struct MeshCache {
+  std::map<std::string, BodyMesh> entries;  // by "mesh:<path>" or "box:<json>"; std::map: stable addresses
+};
+
+// One entry of "bodies" before expansion of its array.
+struct BodySpec {
+  const TetMesh* mesh = nullptr;
+  const SurfaceMesh* surface = nullptr;
+  int32_t material = 0;
+  Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();  // rotate * scale
+  Eigen::Vector3d translate = Eigen::Vector3d::Zero();   // [m]
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();    // [m/s]
+  std::array<int64_t, 3> count = {1, 1, 1};              // copies along x, y, z
+  Eigen::Vector3d spacing = Eigen::Vector3d::Zero();     // [m] between copies
+};
+
+Eigen::Matrix3d rotation_xyz_degrees(const Eigen::Vector3d& deg) {
+  const Eigen::Vector3d r = deg * (M_PI / 180.0);
+  return (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX())).toRotationMatrix();
+}
+
+// The .msh file named by the entry's "mesh".
+const BodyMesh& read_mesh_entry(const json& j, const Where& w, const fs::path& scene_dir, MeshCache& cache) {
+  const fs::path path = scene_dir / string(j["mesh"], w["mesh"]);
+  const std::string key = "mesh:" + path.lexically_normal().string();
+  if (const auto found = cache.entries.find(key); found != cache.entries.end()) return found->second;
+  std::error_code error;  // the throwing fs::exists would escape with its own message
+  if (!fs::exists(path, error)) w["mesh"].fail("mesh file not found: " + path.string());
+  TetMesh mesh;
+  try {
+    mesh = read_msh(path);
+  } catch (const std::exception& e) {
+    w["mesh"].fail(e.what());
+  }
+  SurfaceMesh surface = extract_surface(mesh);
+  return cache.entries.emplace(key, BodyMesh(std::move(mesh), std::move(surface))).first->second;
+}
+
+// The box mesh of the entry's "box" (`box`, at `wb`), checked against the limits before it is built.
+const BodyMesh& read_box_entry(const json& box, const Where& wb, MeshCache& cache, const Model& model,
+                               const SceneLimits& limits) {
+  check_keys(box, wb, {"size", "cells"});
+  if (!box.contains("size") || !box.contains("cells")) wb.fail("needs \"size\" and \"cells\"");
+  const Eigen::Vector3d size = vec3(box["size"], wb["size"]);
+  if (!(size.array() > 0.0).all()) wb["size"].fail("expected 3 positive numbers", box["size"]);
+  const json& cells = box["cells"];
+  if (!cells.is_array() || cells.size() != 3) wb["cells"].fail("expected 3 positive integers", cells);
+  std::array<int, 3> n{};
+  for (int d = 0; d < 3; ++d) {
+    const int64_t c = integer(cells[d], wb["cells"][d], 1);
+    if (c > 1000) wb["cells"][d].fail("at most 1000 cells per side", cells[d]);
+    n[d] = static_cast<int>(c);
+  }
+  const std::string key = "box:" + box.dump();
+  if (const auto found = cache.entries.find(key); found != cache.entries.end()) return found->second;
+  const int64_t vertices = int64_t{n[0] + 1} * (n[1] + 1) * (n[2] + 1);
+  const int64_t tets = kTetsPerBoxCell * int64_t{n[0]} * n[1] * n[2];
+  check_size(model, vertices, tets, limits,
+             "a box of " + show(cells) + " cells (" + std::to_string(vertices) + " vertices, " +
+                 std::to_string(tets) + " tets)",
+             wb["cells"]);
+  TetMesh mesh = make_box_mesh(size, n);
+  SurfaceMesh surface = extract_surface(mesh);
+  return cache.entries.emplace(key, BodyMesh(std::move(mesh), std::move(surface))).first->second;
+}
+
+// The entry's "array" (`a`, at `wa`): copy counts and spacing.
+void read_array(const json& a, const Where& wa, BodySpec& body) {
+  check_keys(a, wa, {"count", "spacing"});
+  if (!a.contains("count")) wa.fail("missing key \"count\"");
+  const json& count = a["count"];
+  if (!count.is_array() || count.size() != 3) wa["count"].fail("expected 3 positive integers", count);
+  for (int d = 0; d < 3; ++d) {
+    body.count[d] = integer(count[d], wa["count"][d], 1);
+    if (body.count[d] > 1000000) wa["count"].fail("more than 1,000,000 copies", count);
+  }
+  // Each factor is at most 10^6 now, so the product cannot overflow.
+  if (body.count[0] * body.count[1] * body.count[2] > 1000000) wa["count"].fail("more than 1,000,000 copies", count);
+  if (a.contains("spacing")) body.spacing = vec3(a["spacing"], wa["spacing"]);
+}
+
+// Reads one "bodies" entry; its mesh is read or built (once per file or box), after checking
+// that the body and all its copies fit in the scene's limits next to what `model` already holds.
+BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
+                   MeshCache& cache, const Model& model, const SceneLimits& limits) {
+  check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array"});
+  if (j.contains("mesh") == j.contains("box")) w.fail("give exactly one of \"mesh\" and \"box\"");
+  const BodyMesh& mesh = j.contains("mesh") ? read_mesh_entry(j, w, scene_dir, cache)
+                                            : read_box_entry(j["box"], w["box"], cache, model, limits);
+  BodySpec body;
+  body.mesh = &mesh.first;
+  body.surface = &mesh.second;
+  if (!j.contains("material")) w.fail("missing key \"material\"");
+  body.material = material_id(j["material"], w["material"], material_ids);
+  const Transform transform = read_transform(j, w);
+  body.linear = transform.linear;
+  body.translate = transform.translate;
+  if (j.contains("velocity")) body.velocity = vec3(j["velocity"], w["velocity"]);
+  if (j.contains("array")) read_array(j["array"], w["array"], body);
+  const int64_t copies = body.count[0] * body.count[1] * body.count[2];
+  const int64_t vertices = body.mesh->num_vertices(), tets = body.mesh->num_tets();
+  check_size(model, copies * vertices, copies * tets, limits,
+             std::to_string(copies) + (copies == 1 ? " copy" : " copies") + " of a " + std::to_string(vertices) +
+                 "-vertex, " + std::to_string(tets) + "-tet body",
+             j.contains("array") ? w["array"]["count"] : w);
+  return body;
+}
+
+// Appends the tets of a body whose vertices start at `base` in the model: ids, Dm^-1, rest
+// volume, material, and a quarter of each tet's mass to each corner. Returns what is wrong, empty
+// when nothing is: the elastic kernels need an invertible, positively oriented Dm that is not
+// flat up to round-off (kDegenerateTetRelativeVolume).
+//
+// Out of line on purpose: how GCC rounds Dm^-1 and the volume (which products it fuses into FMAs,
+// what it vectorizes) depends on the code the kernel is inlined into, and scenes are to keep
+// their bits from one version of the builder to the next.
+[[gnu::noinline]] std::string append_tets(const TetMesh& mesh, int32_t base, int32_t material, Model& model) {
+  const double density = model.materials[material].density;
+  for (int32_t t = 0; t < mesh.num_tets(); ++t) {
+    int32_t ids[4];
+    for (int c = 0; c < 4; ++c) ids[c] = base + mesh.tets[4 * t + c];
+    Eigen::Matrix3d Dm;  // rest edges [X1-X0, X2-X0, X3-X0]
+    const Eigen::Vector3d x0 = Eigen::Vector3d::Map(&model.rest_positions[3 * ids[0]]);
+    for (int c = 0; c < 3; ++c) Dm.col(c) = Eigen::Vector3d::Map(&model.rest_positions[3 * ids[c + 1]]) - x0;
+    Eigen::Matrix3d Dm_inv;
+    double volume = 0.0;
+    tet_rest_shape_from_edges(Dm, Dm_inv, volume);
+    const double longest = std::max({Dm.col(0).norm(), Dm.col(1).norm(), Dm.col(2).norm(),
+                                     (Dm.col(1) - Dm.col(0)).norm(), (Dm.col(2) - Dm.col(0)).norm(),
+                                     (Dm.col(2) - Dm.col(1)).norm()});
+    // volume > (a bound >= 0) implies det(Dm) > 0, what tet_rest_shape_from_edges returns.
+    if (!(volume > kDegenerateTetRelativeVolume * longest * longest * longest) || !Dm_inv.allFinite())
+      return "tet " + std::to_string(t) + " of the mesh is degenerate once placed (volume " + show(json(volume)) +
+             "): size or scale too small or too uneven, or translate too large for its size";
+    for (int c = 0; c < 4; ++c) {
+      model.tets.push_back(ids[c]);
+      model.mass[ids[c]] += density * volume / 4.0;
+    }
+    model.Dm_inv.insert(model.Dm_inv.end(), Dm_inv.data(), Dm_inv.data() + 9);
+    model.rest_volume.push_back(volume);
+    model.tet_material.push_back(material);
+  }
+  return "";
+}
+
+// Appends one transformed copy of a body to the model and the initial state. Returns what is
+// wrong with the copy, empty when nothing is: a transform can overflow a position to infinity
+// (translate 1e308 plus an array spacing) or flatten tets that were fine in the mesh's own frame
+// (scale [1, 1, 1e-300]), and the elastic kernels need finite rest positions and invertible Dm.
+std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t scene_entry, Model& model,
+                        State& state) {
+  const TetMesh& mesh = *spec.mesh;
+  const SurfaceMesh& surface = *spec.surface;
+  BodyRange range;
+  range.vertex_begin = model.num_vertices;
+  range.vertex_count = mesh.num_vertices();
+  range.tet_begin = model.num_tets;
+  range.tet_count = mesh.num_tets();
+  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
+  range.triangle_count = static_cast<int32_t>(surface.triangles.size() / 3);
+  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
+  range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
+  range.scene_entry = scene_entry;
+  range.material = spec.material;
+  const int32_t body_id = static_cast<int32_t>(model.bodies.size());
+  const int32_t base = range.vertex_begin;
+
+  for (int32_t v = 0; v < mesh.num_vertices(); ++v) {
+    const Eigen::Vector3d p = spec.linear * Eigen::Vector3d::Map(&mesh.positions[3 * v]) + spec.translate + offset;
+    if (!p.allFinite())
+      return "vertex " + std::to_string(v) + " of the mesh is not finite once placed (translate, scale "
+             "or array spacing too large)";
+    for (int d = 0; d < 3; ++d) {
+      model.rest_positions.push_back(p[d]);
+      state.v.push_back(spec.velocity[d]);
+    }
+    model.mass.push_back(0.0);
+    model.vertex_body.push_back(body_id);
+    model.dirichlet.push_back(-1);
+  }
+  if (std::string problem = append_tets(mesh, base, spec.material, model); !problem.empty()) return problem;
+  for (int32_t i : surface.triangles) model.surface_triangles.push_back(base + i);
+  for (int32_t i : surface.edges) model.surface_edges.push_back(base + i);
+  for (int32_t i : surface.vertices) model.surface_vertices.push_back(base + i);
+
+  if (!model.material_batches.empty() && model.material_batches.back().material == spec.material)
+    model.material_batches.back().tet_end += range.tet_count;
+  else
+    model.material_batches.push_back({range.tet_begin, range.tet_begin + range.tet_count, spec.material});
+  model.num_vertices += range.vertex_count;
+  model.num_tets += range.tet_count;
+  model.bodies.push_back(range);
+  return "";
+}
+
+// Every entry of "bodies" (`bodies`, at `w`), each copy of an "array" as its own body.
+void append_bodies(const json& bodies, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
+                   const SceneLimits& limits, Model& model, State& initial) {
+  MeshCache cache;
+  for (size_t b = 0; b < bodies.size(); ++b) {
+    const BodySpec spec = read_body(bodies[b], w[b], scene_dir, material_ids, cache, model, limits);
+    for (int64_t i = 0; i < spec.count[0]; ++i)
+      for (int64_t k = 0; k < spec.count[1]; ++k)
+        for (int64_t l = 0; l < spec.count[2]; ++l) {
+          const Eigen::Vector3d offset(i * spec.spacing.x(), k * spec.spacing.y(), l * spec.spacing.z());
+          const std::string problem = append_body(spec, offset, static_cast<int32_t>(b), model, initial);
+          if (problem.empty()) continue;
+          const bool single = spec.count == std::array<int64_t, 3>{1, 1, 1};
+          w[b].fail((single ? std::string()
+                            : "copy (" + std::to_string(i) + ", " + std::to_string(k) + ", " + std::to_string(l) +
+                                  ") of the array: ") +
+                    problem);
+        }
+  }
+}
+
+// ---- boundary conditions -------------------------------------------------------------------------
+
+void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scene_bodies) {
+  check_keys(j, w, {"body", "box_min", "box_max", "fix", "velocity", "angular_velocity", "axis", "center"});
+  if (!j.contains("box_min") || !j.contains("box_max")) w.fail("needs \"box_min\" and \"box_max\"");
+  const Eigen::Vector3d lo = vec3(j["box_min"], w["box_min"]);
+  const Eigen::Vector3d hi = vec3(j["box_max"], w["box_max"]);
+  if (!(lo.array() <= hi.array()).all()) w["box_max"].fail("box_max must be >= box_min in x, y and z", j["box_max"]);
+  std::optional<int64_t> only_entry;
+  if (j.contains("body")) {
+    only_entry = integer(j["body"], w["body"], 0);
+    if (*only_entry >= num_scene_bodies)
+      w["body"].fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", j["body"]);
+  }
+  const bool fix = j.contains("fix");
+  if (fix && !boolean(j["fix"], w["fix"])) w["fix"].fail("\"fix\" can only be true; leave it out for a moving boundary");
+  if (fix && (j.contains("velocity") || j.contains("angular_velocity")))
+    w.fail("\"fix\" cannot be combined with \"velocity\" or \"angular_velocity\"");
+  if (!fix && !j.contains("velocity") && !j.contains("angular_velocity"))
+    w.fail("give \"fix\": true, a \"velocity\" or an \"angular_velocity\"");
+  const DirichletMotion motion = read_motion(j, w, 0.5 * (lo + hi));
+
+  const int32_t id = static_cast<int32_t>(model.dirichlet_motions.size());
+  int64_t selected = 0;
+  for (int32_t v = 0; v < model.num_vertices; ++v) {
+    const BodyRange& body = model.bodies[model.vertex_body[v]];
+    // Obstacle vertices already follow their own fixed motion, and an obstacle's scene_entry
+    // counts "obstacles" entries, not "bodies" entries, so "body" must never match it.
+    if (body.obstacle) continue;
+    if (only_entry && body.scene_entry != *only_entry) continue;
+    const Eigen::Vector3d p = Eigen::Vector3d::Map(&model.rest_positions[3 * v]);
+    if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) {
+      if (model.dirichlet[v] >= 0 && model.dirichlet[v] != id)
+        w.fail("selects vertex " + std::to_string(v) + " already held by boundary[" +
+               std::to_string(model.dirichlet[v]) + "]");
+      model.dirichlet[v] = id;
+      ++selected;
+    }
+  }
+  if (selected == 0) w.fail("the box selects no vertex");
+  model.dirichlet_motions.push_back(motion);
+}
+
+// ---- joints --------------------------------------------------------------------------------------
+
+// The tet of body `b` nearest to `point` (distance 0 when inside; the lowest index on ties) and
+// the point's barycentric weights in it, extrapolated when it lies outside.
+void attach_to_body(const Model& model, const BodyRange& body, const Eigen::Vector3d& point, int32_t (&vertex)[4],
+                    double (&weight)[4]) {
+  auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * int64_t{v}]); };
+  double best = std::numeric_limits<double>::infinity();
+  int32_t best_tet = body.tet_begin;
+  for (int32_t t = body.tet_begin; t < body.tet_begin + body.tet_count && best > 0.0; ++t) {
+    const int32_t* c = &model.tets[4 * int64_t{t}];
+    // Inside: every face sees the point on its inner side; else the nearest face's distance.
+    double d = 0.0;
+    bool inside = true;
+    constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    double nearest_face = std::numeric_limits<double>::infinity();
+    for (const auto& f : kFace) {
+      const Eigen::Vector3d a = X(c[f[0]]), b = X(c[f[1]]), e = X(c[f[2]]);
+      inside = inside && (b - a).cross(e - a).dot(point - a) <= 0.0;
+      nearest_face = std::min(nearest_face, point_triangle_distance(point, a, b, e));
+    }
+    if (!inside) d = nearest_face;
+    if (d < best) {
+      best = d;
+      best_tet = t;
+    }
+  }
+  const int32_t* c = &model.tets[4 * int64_t{best_tet}];
+  Eigen::Matrix3d edges;
+  edges << X(c[1]) - X(c[0]), X(c[2]) - X(c[0]), X(c[3]) - X(c[0]);
+  const Eigen::Vector3d l = edges.inverse() * (point - X(c[0]));
+  weight[0] = 1.0 - l.sum();
+  for (int k = 0; k < 3; ++k) weight[k + 1] = l[k];
+  for (int k = 0; k < 4; ++k) vertex[k] = c[k];
+}
+
+// The one body made from "bodies" entry `entry` (an "array" entry makes several: ambiguous).
+const BodyRange& joint_body(const json& value, const Where& w, const Model& model, int64_t num_scene_bodies) {
+  const int64_t entry = integer(value, w, 0);
+  if (entry >= num_scene_bodies) w.fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", value);
+  const BodyRange* found = nullptr;
+  for (const BodyRange& body : model.bodies) {
+    if (body.obstacle || body.scene_entry != entry) continue;
+    if (found) w.fail("body " + std::to_string(entry) + " is an \"array\" of several bodies; a joint needs one", value);
+    found = &body;
+  }
+  return *found;
+}
+
+// A ball joint's "bodies" (`pair`, at `w`): the first body's weights, then the second's negated.
+void attach_ball(const json& pair, const Where& w, const Eigen::Vector3d& point, const Model& model,
+                 int64_t num_scene_bodies, Joint& joint) {
+  if (!pair.is_array() || pair.size() != 2) w.fail("expected two body indices", pair);
+  const BodyRange& a = joint_body(pair[0], w[0], model, num_scene_bodies);
+  const BodyRange& b = joint_body(pair[1], w[1], model, num_scene_bodies);
+  if (&a == &b) w.fail("a ball joint needs two different bodies", pair);
+  joint.type = JointType::ball;
+  joint.count = 8;
+  for (int side = 0; side < 2; ++side) {
+    int32_t v[4];
+    double weight[4];
+    attach_to_body(model, side == 0 ? a : b, point, v, weight);
+    for (int k = 0; k < 4; ++k) {
+      joint.vertex[4 * side + k] = v[k];
+      joint.coefficient[4 * side + k] = side == 0 ? weight[k] : -weight[k];
+    }
+  }
+}
+
+void read_joint(const json& j, const Where& w, int32_t scene_entry, Model& model, int64_t num_scene_bodies) {
+  check_keys(j, w, {"type", "body", "bodies", "point"});
+  if (!j.contains("type")) w.fail("missing key \"type\" (\"pin\" or \"ball\")");
+  if (!j.contains("point")) w.fail("missing key \"point\"");
+  const std::string type = string(j["type"], w["type"]);
+  const Eigen::Vector3d point = vec3(j["point"], w["point"]);
+  Joint joint;
+  joint.scene_entry = scene_entry;
+  if (type == "pin") {
+    if (!j.contains("body") || j.contains("bodies")) w.fail("a pin takes \"body\" (one index), not \"bodies\"");
+    joint.type = JointType::pin;
+    joint.count = 4;
+    int32_t v[4];
+    double weight[4];
+    attach_to_body(model, joint_body(j["body"], w["body"], model, num_scene_bodies), point, v, weight);
+    for (int k = 0; k < 4; ++k) {
+      joint.vertex[k] = v[k];
+      joint.coefficient[k] = weight[k];
+    }
+    joint.offset = -point;
+  } else if (type == "ball") {
+    if (!j.contains("bodies") || j.contains("body")) w.fail("a ball joint takes \"bodies\" (two indices), not \"body\"");
+    attach_ball(j["bodies"], w["bodies"], point, model, num_scene_bodies, joint);
+  } else {
+    w["type"].fail("expected \"pin\" or \"ball\"", j["type"]);
+  }
+  model.joints.push_back(joint);
+}
+
+}  // namespace
+
+// ---- shared with build_obstacles.cpp -------------------------------------------------------------
+
+Transform read_transform(const json& j, const Where& w) {
+  Eigen::Matrix3d scale = Eigen::Matrix3d::Identity();
+  if (j.contains("scale")) {
+    if (j["scale"].is_array()) {
+      const Eigen::Vector3d s = vec3(j["scale"], w["scale"]);
+      if (!(s.array() > 0.0).all()) w["scale"].fail("expected positive scale factors", j["scale"]);
+      scale = s.asDiagonal();
+    } else {
+      scale *= positive(j["scale"], w["scale"]);
+    }
+  }
+  Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
+  if (j.contains("rotate_deg")) rotate = rotation_xyz_degrees(vec3(j["rotate_deg"], w["rotate_deg"]));
+  Transform t;
+  t.linear = rotate * scale;
+  if (j.contains("translate")) t.translate = vec3(j["translate"], w["translate"]);
+  return t;
+}
+
+DirichletMotion read_motion(const json& j, const Where& w, const Eigen::Vector3d& center) {
+  DirichletMotion motion;
+  if (j.contains("velocity")) motion.velocity = vec3(j["velocity"], w["velocity"]);
+  if (j.contains("angular_velocity")) {
+    motion.angular_velocity = number(j["angular_velocity"], w["angular_velocity"]);
+    if (!j.contains("axis")) w.fail("\"angular_velocity\" needs an \"axis\"");
+  }
+  if (j.contains("axis")) {
+    const Eigen::Vector3d axis = vec3(j["axis"], w["axis"]);
+    if (axis.norm() == 0.0) w["axis"].fail("the axis must not be zero", j["axis"]);
+    motion.axis = axis.normalized();
+  }
+  motion.center = j.contains("center") ? vec3(j["center"], w["center"]) : center;
+  return motion;
+}
+
+void check_size(const Model& model, int64_t vertices, int64_t tets, const SceneLimits& limits,
+                const std::string& what, const Where& w) {
+  const int64_t total_vertices = model.num_vertices + vertices;
+  const int64_t total_tets = model.num_tets + tets;
+  if (total_vertices > limits.max_vertices)
+    w.fail(what + " would give the scene " + std::to_string(total_vertices) + " vertices, more than the limit of " +
+           std::to_string(limits.max_vertices));
+  if (total_tets > limits.max_tets)
+    w.fail(what + " would give the scene " + std::to_string(total_tets) + " tets, more than the limit of " +
+           std::to_string(limits.max_tets));
+}
+
+// ---- the whole model -----------------------------------------------------------------------------
+
+void build_model(const json& root, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
+                 const SceneLimits& limits, bool contact_enabled, Model& model, State& initial) {
+  if (!root.contains("bodies")) w.fail("missing key \"bodies\"");
+  const json& bodies = root["bodies"];
+  if (!bodies.is_array() || bodies.empty()) w["bodies"].fail("expected a non-empty array of bodies");
+  append_bodies(bodies, w["bodies"], scene_dir, material_ids, limits, model, initial);
+  const int64_t num_scene_bodies = static_cast<int64_t>(bodies.size());
+
+  if (root.contains("boundary")) {
+    const json& boundary = root["boundary"];
+    if (!boundary.is_array()) w["boundary"].fail("expected an array", boundary);
+    for (size_t i = 0; i < boundary.size(); ++i)
+      read_boundary(boundary[i], w["boundary"][i], model, num_scene_bodies);
+  }
+
+  // Joints, on the bodies' tets.
+  if (root.contains("joints")) {
+    const json& joints = root["joints"];
+    if (!joints.is_array()) w["joints"].fail("expected an array", joints);
+    for (size_t i = 0; i < joints.size(); ++i)
+      read_joint(joints[i], w["joints"][i], static_cast<int32_t>(i), model, num_scene_bodies);
+  }
+
+  // Obstacles, after every body and every boundary entry: "bodies" entries keep their body
+  // indices, and the shared fixed motion of obstacle meshes comes after the "boundary" motions.
+  if (root.contains("obstacles"))
+    append_obstacles(root["obstacles"], w["obstacles"], scene_dir, material_ids, limits, model, initial);
+
+  // With contact, moving boundaries and obstacles push bodies: their vertices become unknowns
+  // held by an augmented Lagrangian (Model::eliminated).
+  for (DirichletMotion& motion : model.dirichlet_motions) motion.kinematic = contact_enabled && motion.moves();
+}
+
+}  // namespace nexdyn::scene_io

@@ -1,0 +1,209 @@
+// Readers of the settings objects of a scene file (see settings_readers.hpp).
+#include "engine/scene/settings_readers.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <limits>
+#include <set>
+#include <utility>
+
+namespace nexdyn::scene_io {
+
+namespace {
+
+// Static friction below kinetic friction is not a physical surface.
+void check_static_friction(double mu_s, double mu_k, const Where& where) {
+  if (mu_s < mu_k)
+    where.fail("static friction must be at least the kinetic \"friction\" " + show(json(mu_k)), json(mu_s));
+}
+
+// "alpha", "beta", "gamma", "alpha_m" and "alpha_f" of "time": a custom scheme.
+void read_custom_integrator(const json& j, const Where& w, TimeSettings& time) {
+  const bool weights = j.contains("alpha_m") || j.contains("alpha_f");
+  // Custom parameters start from the named scheme; without one, from the plain family's
+  // reference, newmark (not from the default, whose generalized-alpha weights would stay).
+  if (!j.contains("integrator") && !j.contains("rho_inf")) time.integrator = *integrator_preset("newmark");
+  IntegratorParams& p = time.integrator;
+  if (p.is_static) w.fail("alpha, beta, gamma, alpha_m and alpha_f cannot be combined with \"static\"");
+  if (weights) {
+    // Generalized-alpha weights: beta and gamma follow them (second order, the most
+    // high-frequency damping for the weights) unless given as well.
+    if (j.contains("alpha_m")) p.alpha_m = number(j["alpha_m"], w["alpha_m"]);
+    if (j.contains("alpha_f")) p.alpha_f = number(j["alpha_f"], w["alpha_f"]);
+    if (!(p.alpha_f >= 0.0 && p.alpha_f <= 0.5))
+      w["alpha_f"].fail("expected 0 <= alpha_f <= 0.5", j.value("alpha_f", json(p.alpha_f)));
+    if (!(p.alpha_m >= -1.0 && p.alpha_m <= p.alpha_f))
+      w["alpha_m"].fail("expected -1 <= alpha_m <= alpha_f (" + show(json(p.alpha_f)) + ")",
+                        j.value("alpha_m", json(p.alpha_m)));
+    p = generalized_alpha_weights(p.alpha_m, p.alpha_f);
+  }
+  if (j.contains("alpha")) p.alpha = positive(j["alpha"], w["alpha"]);
+  if (j.contains("beta")) p.beta = number(j["beta"], w["beta"]);
+  if (j.contains("gamma")) p.gamma = number(j["gamma"], w["gamma"]);
+  if (p.beta < 0.0 || p.beta > 0.5) w["beta"].fail("expected 0 <= beta <= 0.5", j.value("beta", json(p.beta)));
+  if (p.gamma < 0.0 || p.gamma > 1.0) w["gamma"].fail("expected 0 <= gamma <= 1", j.value("gamma", json(p.gamma)));
+  if ((p.alpha_m != 0.0 || p.alpha_f != 0.0) && p.is_explicit())
+    w["beta"].fail("generalized-alpha weights need an implicit scheme (beta > 0)", json(p.beta));
+  p.name = "custom";
+}
+
+Material read_material(const std::string& name, const json& j, const Where& w) {
+  check_keys(j, w, {"model", "youngs", "poisson", "density"});
+  for (const char* key : {"model", "youngs", "poisson", "density"})
+    if (!j.contains(key)) w.fail(std::string("missing key \"") + key + "\"");
+  Material m;
+  m.name = name;
+  const std::string model = string(j["model"], w["model"]);
+  const auto parsed = material_model_from_name(model);
+  if (!parsed)
+    w["model"].fail("unknown material model " + show(json(model)) + " (known: linear, stvk, corotated, neohookean)");
+  m.model = *parsed;
+  m.youngs = positive(j["youngs"], w["youngs"]);
+  m.poisson = number(j["poisson"], w["poisson"]);
+  if (!(m.poisson > -1.0 && m.poisson < 0.5)) w["poisson"].fail("expected -1 < poisson < 0.5", j["poisson"]);
+  m.density = positive(j["density"], w["density"]);
+  m.lame = lame_from_young_poisson(m.youngs, m.poisson);
+  return m;
+}
+
+}  // namespace
+
+void read_time(const json& j, const Where& w, TimeSettings& time) {
+  check_keys(j, w, {"dt", "steps", "integrator", "rho_inf", "alpha", "beta", "gamma", "alpha_m", "alpha_f",
+                    "initial_acceleration", "energy_guard"});
+  if (j.contains("energy_guard")) time.energy_guard = boolean(j["energy_guard"], w["energy_guard"]);
+  if (j.contains("dt")) time.dt = positive(j["dt"], w["dt"]);
+  if (j.contains("steps")) time.steps = integer(j["steps"], w["steps"], 1);
+  if (j.contains("integrator")) {
+    const std::string name = string(j["integrator"], w["integrator"]);
+    const auto preset = integrator_preset(name);
+    if (!preset) {
+      std::string list;
+      for (const std::string& n : integrator_preset_names()) list += (list.empty() ? "" : ", ") + n;
+      w["integrator"].fail("unknown integrator " + show(json(name)) + " (known: " + list + ")");
+    }
+    time.integrator = *preset;
+  }
+  if (j.contains("rho_inf")) {
+    if (time.integrator.name != "generalized_alpha")
+      w["rho_inf"].fail("rho_inf belongs to \"integrator\": \"generalized_alpha\", not " +
+                        show(json(time.integrator.name)), j["rho_inf"]);
+    const double rho = number(j["rho_inf"], w["rho_inf"]);
+    if (!(rho >= 0.0 && rho <= 1.0)) w["rho_inf"].fail("expected 0 <= rho_inf <= 1", j["rho_inf"]);
+    time.integrator = generalized_alpha(rho);
+  }
+  if (j.contains("alpha_m") || j.contains("alpha_f") || j.contains("alpha") || j.contains("beta") ||
+      j.contains("gamma"))
+    read_custom_integrator(j, w, time);
+  if (j.contains("initial_acceleration")) {
+    const std::string mode = string(j["initial_acceleration"], w["initial_acceleration"]);
+    if (mode == "consistent") time.consistent_initial_acceleration = true;
+    else if (mode == "zero") time.consistent_initial_acceleration = false;
+    else w["initial_acceleration"].fail("expected \"consistent\" or \"zero\"", j["initial_acceleration"]);
+  }
+}
+
+void read_solver(const json& j, const Where& w, SolverSettings& solver) {
+  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings"});
+  if (j.contains("substep_halvings")) {
+    // Bounded before the cast to int: 2^32 must not wrap to 0.
+    const int64_t halvings = integer(j["substep_halvings"], w["substep_halvings"], 0);
+    if (halvings > kMaxSubstepHalvings)
+      w["substep_halvings"].fail("expected at most " + std::to_string(kMaxSubstepHalvings) + " (dt / 65536)",
+                                 j["substep_halvings"]);
+    solver.substep_halvings = static_cast<int>(halvings);
+  }
+  if (j.contains("tolerance")) solver.tolerance = positive(j["tolerance"], w["tolerance"]);
+  if (j.contains("joint_tolerance")) solver.joint_tolerance = positive(j["joint_tolerance"], w["joint_tolerance"]);
+  if (j.contains("max_iterations"))
+    solver.max_iterations = bounded_int(j["max_iterations"], w["max_iterations"], 1, std::numeric_limits<int>::max());
+}
+
+void read_contact(const json& j, const Where& w, ContactSettings& contact) {
+  check_keys(j, w, {"enabled", "dhat", "friction", "static_friction", "friction_pairs", "epsv",
+                    "friction_iterations"});
+  contact.enabled = j.contains("enabled") ? boolean(j["enabled"], w["enabled"]) : true;
+  if (j.contains("dhat")) contact.dhat = positive(j["dhat"], w["dhat"]);
+  if (j.contains("friction")) contact.friction = non_negative(j["friction"], w["friction"]);
+  if (j.contains("static_friction")) {
+    contact.static_friction = non_negative(j["static_friction"], w["static_friction"]);
+    check_static_friction(contact.static_friction, contact.friction, w["static_friction"]);
+  }
+  if (j.contains("epsv")) contact.epsv = positive(j["epsv"], w["epsv"]);
+  if (j.contains("friction_iterations")) {
+    const json& value = j["friction_iterations"];
+    if (value.is_string() && value.get<std::string>() == "converged")
+      contact.friction_iterations = -1;
+    else if (value.is_number_integer())
+      contact.friction_iterations = bounded_int(value, w["friction_iterations"], 1, std::numeric_limits<int>::max());
+    else
+      w["friction_iterations"].fail("expected an integer >= 1 or \"converged\"", value);
+  }
+}
+
+void read_output(const json& j, const Where& w, OutputSettings& output) {
+  check_keys(j, w, {"every", "formats", "checkpoint_every"});
+  if (j.contains("every")) output.every = integer(j["every"], w["every"], 1);
+  if (j.contains("checkpoint_every"))
+    output.checkpoint_every = integer(j["checkpoint_every"], w["checkpoint_every"], 0);
+  if (j.contains("formats")) {
+    const json& f = j["formats"];
+    if (!f.is_array()) w["formats"].fail("expected an array of \"vtu\" and/or \"obj\"", f);
+    output.vtu = output.obj = false;
+    for (size_t i = 0; i < f.size(); ++i) {
+      const std::string name = string(f[i], w["formats"][i]);
+      if (name == "vtu") output.vtu = true;
+      else if (name == "obj") output.obj = true;
+      else w["formats"][i].fail("unknown output format (known: vtu, obj)", f[i]);
+    }
+  }
+}
+
+int32_t material_id(const json& value, const Where& w, const MaterialIds& material_ids) {
+  const std::string name = string(value, w);
+  const auto found = material_ids.find(name);
+  if (found == material_ids.end()) w.fail("no material named " + show(json(name)) + " in \"materials\"");
+  return found->second;
+}
+
+void read_friction_pairs(const json& j, const Where& w, const MaterialIds& material_ids,
+                         ContactSettings& contact) {
+  if (!j.is_array()) w.fail("expected an array", j);
+  std::set<std::pair<int32_t, int32_t>> given;  // a set: a long list must not take quadratic time
+  for (size_t i = 0; i < j.size(); ++i) {
+    const json& entry = j[i];
+    const Where we = w[i];
+    if (!entry.is_object()) we.fail("expected an object", entry);
+    check_keys(entry, we, {"materials", "friction", "static_friction"});
+    if (!entry.contains("materials") || !entry.contains("friction")) we.fail("needs \"materials\" and \"friction\"");
+    const json& names = entry["materials"];
+    if (!names.is_array() || names.size() != 2) we["materials"].fail("expected two material names", names);
+    ContactSettings::FrictionPair pair;
+    pair.a = material_id(names[0], we["materials"][0], material_ids);
+    pair.b = material_id(names[1], we["materials"][1], material_ids);
+    if (pair.a > pair.b) std::swap(pair.a, pair.b);
+    pair.friction = non_negative(entry["friction"], we["friction"]);
+    pair.static_friction = pair.friction;
+    if (entry.contains("static_friction")) {
+      pair.static_friction = non_negative(entry["static_friction"], we["static_friction"]);
+      check_static_friction(pair.static_friction, pair.friction, we["static_friction"]);
+    }
+    if (!given.insert({pair.a, pair.b}).second) we["materials"].fail("this pair of materials is already given", names);
+    contact.friction_pairs.push_back(pair);
+  }
+}
+
+MaterialIds read_materials(const json& j, const Where& w, const SceneLimits& limits,
+                           std::vector<Material>& materials) {
+  if (!j.is_object() || j.empty()) w.fail("expected a non-empty object of named materials");
+  if (static_cast<int64_t>(j.size()) > limits.max_materials)
+    w.fail(std::to_string(j.size()) + " materials, more than the limit of " + std::to_string(limits.max_materials));
+  MaterialIds material_ids;
+  for (const auto& item : j.items()) {
+    material_ids[item.key()] = static_cast<int32_t>(materials.size());
+    materials.push_back(read_material(item.key(), item.value(), w[item.key()]));
+  }
+  return material_ids;
+}
+
+}  // namespace nexdyn::scene_io
