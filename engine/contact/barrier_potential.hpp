@@ -9,15 +9,11 @@
 // evaluated, because the list holds every pair that comes closer than dhat anywhere on it.
 //
 // Per Newton iteration the active set is built at x (build_active_set) and the derivatives are
-// computed over it (compute_derivatives). The active set is a list of stencils, one per closest
-// feature rather than one per candidate pair: a vertex facing a vertex of another surface is the
-// closest point of several vertex-triangle and edge-edge pairs, all with the same point-point
-// distance, so their barriers are the same number. Pairs whose closest feature is point-point or
-// point-edge are merged into one stencil per feature (its sorted vertex ids) with an integer
-// multiplicity, and the stencil's energy and derivatives are multiplicity x one evaluation (as
-// ipc-toolkit does). Point-triangle interiors, edge-edge interiors and mollified (nearly
-// parallel) edge-edge pairs are unique per pair and stay one stencil each; a mollified pair keeps
-// all 4 vertices because its mollifier depends on all of them.
+// computed over it (compute_derivatives). The active set (active_set.hpp) is a list of stencils,
+// one per closest feature rather than one per candidate pair: point-point and point-edge features
+// shared by several pairs are merged into one stencil with an integer multiplicity, and the
+// stencil's energy and derivatives are multiplicity x one evaluation. The derivatives of one
+// stencil are kernels (kernels/barrier/barrier_stencils.hpp).
 //
 // A stencil's derivatives are stored at its real size n (1 vertex-plane, 2 point-point,
 // 3 point-edge, 4 otherwise): a 3n gradient and a 3n x 3n PSD-projected Hessian slab. Both are
@@ -26,9 +22,13 @@
 // padded to 4 (vertex-triangle: p, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; point-edge: p,
 // e0 < e1; point-point: a < b; vertex-plane: v); absent and eliminated held vertices are -1, the
 // latter because their rows and columns are eliminated from the Newton system anyway.
+//
+// Files: barrier_potential.cpp (energies, summary, derivatives), contact_ccd.cpp (the swept
+// search and the collision-free step), active_set.cpp (the pair cache and the stencils).
 #pragma once
 
 #include "engine/active_subset.hpp"
+#include "engine/contact/active_set.hpp"
 #include "engine/contact/candidates.hpp"
 #include "engine/model.hpp"
 #include "engine/step_profile.hpp"
@@ -52,10 +52,9 @@ void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vect
 class BarrierPotential {
  public:
   // Closest feature of a stencil; decides its size and derivative kernel.
-  enum class StencilKind : uint8_t {
-    vertex_plane, point_point, point_edge, point_triangle, edge_edge, edge_edge_mollified
-  };
-  static int stencil_size(StencilKind kind);  // vertices n: the slab is 3n x 3n
+  using StencilKind = ContactStencilKind;
+  // Vertices n of a stencil: the slab is 3n x 3n.
+  static int stencil_size(StencilKind kind) { return contact_stencil_size(kind); }
 
   // dhat: activation distance [m] (> 0).
   BarrierPotential(const Model& model, double dhat);
@@ -107,14 +106,14 @@ class BarrierPotential {
   // computed per merged feature (a check of the merging).
   double active_set_energy(const double* x) const;
   // Candidate pairs closer than dhat (the sum of the multiplicities).
-  int64_t num_active_pairs() const { return num_active_pairs_; }
-  int64_t num_stencils() const { return static_cast<int64_t>(kind_.size()); }
-  const std::vector<int32_t>& stencils() const { return stencils_; }            // (num_stencils x 4)
-  const std::vector<StencilKind>& kinds() const { return kind_; }                // (num_stencils)
+  int64_t num_active_pairs() const { return active_.num_active_pairs(); }
+  int64_t num_stencils() const { return active_.num_stencils(); }
+  const std::vector<int32_t>& stencils() const { return active_.stencils(); }            // (num_stencils x 4)
+  const std::vector<StencilKind>& kinds() const { return active_.kinds(); }               // (num_stencils)
   // (num_stencils x 4) real vertex ids, held ones included; vertex-plane: v, plane index.
-  const std::vector<int32_t>& stencil_vertices() const { return vertices_; }
-  const std::vector<int32_t>& multiplicities() const { return multiplicity_; }  // (num_stencils)
-  const std::vector<int64_t>& slab_begin() const { return slab_begin_; }        // (num_stencils + 1)
+  const std::vector<int32_t>& stencil_vertices() const { return active_.vertices(); }
+  const std::vector<int32_t>& multiplicities() const { return active_.multiplicities(); }  // (num_stencils)
+  const std::vector<int64_t>& slab_begin() const { return active_.slab_begin(); }        // (num_stencils + 1)
   const std::vector<double>& local_hessians() const { return hessians_; }       // (slab_begin.back())
   // grad += the gradient of the last compute_derivatives(), in stencil order.
   void add_gradient(double* grad) const;
@@ -143,56 +142,23 @@ class BarrierPotential {
   double dhat_ = 0.0, dhat2_ = 0.0;
   StepProfile* profile_ = nullptr;
   ContactCandidates candidates_;
-  std::vector<double> x1_;  // (3n) end of the swept motion
   bool static_search_ = false;     // candidates_ come from find_candidates(static_x_, nullptr)
   std::vector<double> static_x_;   // (3n)
-  ContactCandidates fresh_;        // workspaces of sweep() with moving vertices
-  std::vector<IndexPair> kept_;
+  // Each candidate's distance and closest feature (cached while its vertices stay put), and the
+  // stencils of the last build_active_set().
+  ContactActiveSet active_;
+  // Derivatives of the last compute_derivatives().
+  std::vector<double> gradients_;  // (num_stencils x 12), the first 3n used
+  std::vector<double> hessians_;   // (slab_begin().back())
+
+  // sweep() and group_max_steps() (contact_ccd.cpp).
+  std::vector<double> x1_;           // (3n) end of the swept motion
+  ContactCandidates fresh_;          // pairs with a moving vertex, searched again
+  std::vector<IndexPair> kept_;      // pairs of one list kept from the last search
+  std::vector<int64_t> kept_index_;  // (kept_) their index in the old concatenated lists
+  std::vector<int64_t> origin_;      // (candidates) index in the old lists, -1 = fresh
   // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)
   std::vector<std::vector<std::pair<int32_t, double>>> run_minima_;
-
-  // A point-point (c = -1) or point-edge feature before merging: its vertices in key order.
-  struct FeatureKey {
-    int32_t a, b, c;  // point-point: a < b; point-edge: point a, edge b < c
-  };
-
-  // Per candidate (vertex-triangle, then edge-edge, then vertex-plane): its squared distance
-  // and active-set code (0 inactive, else closest feature + 1) at pair_x_, valid where
-  // pair_known_ is set. A Newton iteration moves only the islands not yet converged, so most
-  // pairs keep their numbers from one iteration to the next; refresh_pairs() recomputes the
-  // pairs that are new or have a vertex whose position changed, compared exactly.
-  void refresh_pairs(const double* x);
-  // Lowers every cache entry's flag (the candidate list was replaced).
-  void forget_pairs() { pair_known_.assign(static_cast<size_t>(candidates_.size()), 0); }
-  std::vector<double> pair_x_;          // (3n) positions of the cached numbers
-  std::vector<uint8_t> vertex_changed_; // (num_vertices) workspace of refresh_pairs()
-  std::vector<uint8_t> pair_known_;     // (candidates)
-  std::vector<double> pair_distance_;   // (candidates)
-  std::vector<uint8_t> candidate_code_; // (candidates)
-  // Workspace of sweep(): the merged lists' cache entries, and the kept pairs' old indices.
-  std::vector<uint8_t> merged_known_, merged_code_;
-  std::vector<double> merged_distance_;
-  std::vector<int64_t> kept_index_;
-
-  // Workspace of build_active_set(), kept to avoid allocation per iteration.
-  std::vector<int64_t> chunk_unique_begin_;   // (chunks + 1) unique stencils before each chunk
-  std::vector<int64_t> chunk_feature_begin_;  // (chunks + 1) mergeable pairs before each chunk
-  std::vector<FeatureKey> features_;          // (mergeable pairs) in candidate order
-  std::vector<FeatureKey> features_by_vertex_;  // the same, bucketed by a
-  std::vector<int64_t> vertex_feature_begin_;   // (num_vertices + 2) bucket of each vertex
-  std::vector<int64_t> vertex_stencil_begin_;   // (num_vertices + 1) first merged stencil of each
-
-  // Active set of the last build_active_set(): unique stencils in candidate order, then merged
-  // ones by first vertex.
-  int64_t num_active_pairs_ = 0;
-  std::vector<StencilKind> kind_;        // (num_stencils)
-  std::vector<int32_t> vertices_;        // (num_stencils x 4) real vertex ids; vertex-plane: v, plane
-  std::vector<int32_t> multiplicity_;    // (num_stencils) active pairs merged into the stencil
-  std::vector<int32_t> stencils_;        // (num_stencils x 4) vertex ids, -1 = absent or held
-  std::vector<int64_t> slab_begin_;      // (num_stencils + 1) prefix of (3n)^2
-  // Derivatives of the last compute_derivatives().
-  std::vector<double> gradients_;        // (num_stencils x 12), the first 3n used
-  std::vector<double> hessians_;         // (slab_begin_.back())
 };
 
 }  // namespace nexdyn

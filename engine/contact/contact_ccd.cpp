@@ -1,0 +1,163 @@
+// The collision-free step of the barrier potential: the swept candidate search and the
+// conservative CCD over its pairs (BarrierPotential::sweep, group_max_steps and max_step; see
+// barrier_potential.hpp). The narrow-phase queries are kernels/ccd.
+#include "engine/contact/barrier_potential.hpp"
+
+#include "engine/contact/pair_geometry.hpp"
+#include "engine/parallel.hpp"
+#include "kernels/ccd/ccd.hpp"
+
+#include <algorithm>
+#include <initializer_list>
+
+namespace nexdyn {
+
+using pair_geometry::kPairGrain;
+using pair_geometry::point;
+
+namespace {
+
+// A CCD step stops at a distance of at most this fraction of dhat (and of the starting
+// distance): far enough from 0 that the barrier stays finite, close enough not to stall.
+constexpr double kCcdGapFraction = 0.1;
+
+}  // namespace
+
+double BarrierPotential::max_step(const double* x, const double* p) {
+  sweep(x, p);
+  double alpha = 1.0;
+  group_max_steps(x, nullptr, &alpha);
+  return alpha;
+}
+
+void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving) {
+  ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
+  const int64_t n = model_.num_dofs();
+  parallel_for(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) x1_[i] = x[i] + p[i];
+  }, 8192);
+  if (!moving) return find_candidates(x, x1_.data());
+  ProfileScope broad(profile_, StepPhase::broad_phase);
+  static_search_ = false;
+  // Pairs of vertices that stay put keep their candidates: none of them moved since the last
+  // search, and that search covered where they are now. Only pairs with a moving vertex are
+  // searched again; the two sets are disjoint, and merging keeps the lists sorted.
+  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving);
+  auto still = [&](std::initializer_list<int32_t> vertices) {
+    for (int32_t v : vertices)
+      if (moving[v]) return false;
+    return true;
+  };
+  // Each list becomes its kept pairs merged with the fresh ones; origin_ records where each
+  // pair of the new lists was in the old ones (-1: fresh), so that the active set's cache
+  // entries of the kept pairs follow them.
+  const int64_t old_size = candidates_.size();
+  origin_.clear();
+  int64_t old_base = 0;
+  auto update = [&](std::vector<IndexPair>& list, const std::vector<IndexPair>& fresh, auto&& keep) {
+    kept_.clear();
+    kept_index_.clear();
+    for (size_t i = 0; i < list.size(); ++i)
+      if (keep(list[i])) {
+        kept_.push_back(list[i]);
+        kept_index_.push_back(old_base + static_cast<int64_t>(i));
+      }
+    old_base += static_cast<int64_t>(list.size());
+    list.resize(kept_.size() + fresh.size());
+    size_t a = 0, b = 0;
+    for (IndexPair& out : list) {
+      if (b == fresh.size() || (a < kept_.size() && kept_[a] < fresh[b])) {
+        origin_.push_back(kept_index_[a]);
+        out = kept_[a++];
+      } else {
+        origin_.push_back(-1);
+        out = fresh[b++];
+      }
+    }
+  };
+  update(candidates_.vertex_triangle, fresh_.vertex_triangle, [&](const IndexPair& pr) {
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return still({pr.first, t[0], t[1], t[2]});
+  });
+  update(candidates_.edge_edge, fresh_.edge_edge, [&](const IndexPair& pr) {
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return still({ea[0], ea[1], eb[0], eb[1]});
+  });
+  update(candidates_.vertex_plane, fresh_.vertex_plane,
+         [&](const IndexPair& pr) { return still({pr.first}); });
+  active_.carry_pairs(old_size, origin_);
+}
+
+void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
+  const double* y = x1_.data();
+  const double min_distance = kCcdGapFraction * dhat_;
+  const ContactCandidates& c = candidates_;
+  // The group a pair belongs to: that of its first moving vertex (all its moving vertices share
+  // one, by the caller's promise); -1 when none of them moves.
+  auto group_of = [&](std::initializer_list<int32_t> vertices) {
+    if (!group_of_vertex) return 0;
+    for (int32_t v : vertices)
+      if (group_of_vertex[v] >= 0) return group_of_vertex[v];
+    return -1;
+  };
+
+  // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
+  // of one group passes its running minimum as tmax to cut work short. Each run leaves one
+  // (group, time) result, and the results are combined in chunk order: the same on any thread
+  // count.
+  auto earliest = [&](int64_t count, auto&& group, auto&& ccd) {
+    const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
+    run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
+    parallel_for(chunks, [&](int64_t cb, int64_t ce) {
+      for (int64_t k = cb; k < ce; ++k) {
+        std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
+        runs.clear();
+        for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
+          const int32_t g = group(i);
+          if (g < 0) continue;
+          if (runs.empty() || runs.back().first != g) runs.emplace_back(g, 1.0);
+          double toi = 1.0;
+          if (ccd(i, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
+        }
+      }
+    }, 1);
+    for (int64_t k = 0; k < chunks; ++k)
+      for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
+  };
+  earliest(static_cast<int64_t>(c.vertex_triangle.size()), [&](int64_t i) {
+    const IndexPair& pr = c.vertex_triangle[i];
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return group_of({pr.first, t[0], t[1], t[2]});
+  }, [&](int64_t i, double tmax, double& toi) {
+    const IndexPair& pr = c.vertex_triangle[i];
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return point_triangle_ccd(point(x, pr.first), point(x, t[0]), point(x, t[1]), point(x, t[2]),
+                              point(y, pr.first), point(y, t[0]), point(y, t[1]), point(y, t[2]),
+                              min_distance, tmax, toi);
+  });
+  earliest(static_cast<int64_t>(c.edge_edge.size()), [&](int64_t i) {
+    const IndexPair& pr = c.edge_edge[i];
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return group_of({ea[0], ea[1], eb[0], eb[1]});
+  }, [&](int64_t i, double tmax, double& toi) {
+    const IndexPair& pr = c.edge_edge[i];
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return edge_edge_ccd(point(x, ea[0]), point(x, ea[1]), point(x, eb[0]), point(x, eb[1]),
+                         point(y, ea[0]), point(y, ea[1]), point(y, eb[0]), point(y, eb[1]),
+                         min_distance, tmax, toi);
+  });
+  earliest(static_cast<int64_t>(c.vertex_plane.size()), [&](int64_t i) {
+    return group_of({c.vertex_plane[i].first});
+  }, [&](int64_t i, double tmax, double& toi) {
+    const IndexPair& pr = c.vertex_plane[i];
+    const ObstaclePlane& plane = model_.obstacle_planes[pr.second];
+    return point_plane_ccd(point(x, pr.first), point(y, pr.first), plane.point, plane.normal,
+                           min_distance, tmax, toi);
+  });
+}
+
+}  // namespace nexdyn

@@ -1,0 +1,58 @@
+// Small helpers the contact files share to read a candidate pair's geometry out of the flat
+// position array (num_vertices x 3) and the Model: a vertex's position, a pair's vertex ids, the
+// mollifier threshold of an edge pair, a vertex's squared distance to an obstacle plane. For the
+// .cpp files of engine/contact only.
+#pragma once
+
+#include "engine/contact/candidates.hpp"
+#include "engine/model.hpp"
+#include "kernels/distance/edge_edge_mollifier.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+
+namespace nexdyn::pair_geometry {
+
+// Candidate pairs per chunk of the parallel loops over one candidate list: fixed, so that chunked
+// results (sums, minima) do not depend on the number of threads.
+inline constexpr int64_t kPairGrain = 256;
+
+inline Eigen::Vector3d point(const double* x, int32_t v) { return Eigen::Vector3d::Map(x + 3 * int64_t{v}); }
+
+// eps_x of the mollifier of edges ea and eb (2 vertex ids each), from the rest shape.
+inline double edge_edge_threshold(const Model& m, const int32_t* ea, const int32_t* eb) {
+  const double* r = m.rest_positions.data();
+  return edge_edge_mollifier_threshold(point(r, ea[0]), point(r, ea[1]), point(r, eb[0]), point(r, eb[1]));
+}
+
+// Squared signed distance of a vertex-plane pair's vertex to its plane; 0 on or behind the plane
+// (counted as touching).
+inline double vertex_plane_squared_distance(const Model& m, const double* x, const IndexPair& pair) {
+  const ObstaclePlane& plane = m.obstacle_planes[pair.second];
+  const double s = (point(x, pair.first) - plane.point).dot(plane.normal);
+  return s > 0.0 ? s * s : 0.0;
+}
+
+// The vertex ids of candidate i of the concatenated lists (vertex-triangle, then edge-edge, then
+// vertex-plane): vertex-triangle p, t0, t1, t2; edge-edge ea0, ea1, eb0, eb1; vertex-plane v, then
+// -1s. The order is that of the stencils (kernels/barrier/barrier_stencils.hpp).
+inline void candidate_vertices(const Model& m, const ContactCandidates& c, int64_t i, int32_t (&s)[4]) {
+  const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
+  const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
+  if (i < nvt) {
+    const IndexPair& pair = c.vertex_triangle[i];
+    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+    s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
+  } else if (i < nvt + nee) {
+    const IndexPair& pair = c.edge_edge[i - nvt];
+    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+    s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
+  } else {
+    s[0] = c.vertex_plane[i - nvt - nee].first;
+    s[1] = s[2] = s[3] = -1;
+  }
+}
+
+}  // namespace nexdyn::pair_geometry

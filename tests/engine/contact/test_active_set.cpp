@@ -1,0 +1,99 @@
+// Tests of engine/contact/active_set.hpp: the per-candidate cache carried through a rebuilt
+// candidate list (as BarrierPotential::sweep rebuilds it) gives the same stencils as a fresh
+// evaluation of every pair, with some vertices moved in between.
+// (The merging against every pair on its own, and the cache through BarrierPotential's masked
+// sweeps: test_contact_potential.cpp.)
+#include "engine/contact/active_set.hpp"
+#include "engine/contact/candidates.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <numeric>
+#include <vector>
+
+using namespace nexdyn;
+
+namespace {
+
+// Two stacked boxes 0.01 m apart over a ground plane 0.02 m under the lower one.
+Scene stacked_boxes() {
+  Scene scene = test::scene_from_json(R"({
+    "materials": { "a": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.5, 0.5, 0.5], "cells": [2, 2, 2] }, "material": "a" },
+                { "box": { "size": [0.4, 0.4, 0.4], "cells": [2, 1, 2] }, "material": "a",
+                  "translate": [0.03, 0.46, -0.02] } ]
+  })", "active_set_boxes");
+  ObstaclePlane ground;
+  ground.point = Eigen::Vector3d(0.0, -0.27, 0.0);
+  ground.normal = Eigen::Vector3d::UnitY();
+  scene.model.obstacle_planes.push_back(ground);
+  return scene;
+}
+
+void check_same(const ContactActiveSet& a, const ContactActiveSet& b) {
+  CHECK(a.num_active_pairs() == b.num_active_pairs());
+  CHECK(a.kinds() == b.kinds());
+  CHECK(a.vertices() == b.vertices());
+  CHECK(a.multiplicities() == b.multiplicities());
+  CHECK(a.stencils() == b.stencils());
+  CHECK(a.slab_begin() == b.slab_begin());
+}
+
+}  // namespace
+
+TEST_CASE("active set: cache entries follow their pairs through a rebuilt candidate list") {
+  const Scene scene = stacked_boxes();
+  const Model& model = scene.model;
+  const double dhat = 0.05;
+  const std::vector<double> x = test::perturbed(model.rest_positions, 2e-3, 5);
+  ContactCandidates old_list;
+  find_contact_candidates(model, x.data(), nullptr, 0.5 * dhat, old_list);
+  ContactActiveSet cached(model, dhat * dhat);
+  cached.forget_pairs(old_list);
+  cached.build(old_list, x.data());
+  REQUIRE(cached.num_active_pairs() > 20);
+  const int64_t count = std::accumulate(cached.multiplicities().begin(), cached.multiplicities().end(), int64_t{0});
+  CHECK(count == cached.num_active_pairs());
+
+  // Every third pair of each list dropped, every fifth kept one passed on as new (unknown), the
+  // rest carried from their old index.
+  ContactCandidates new_list;
+  std::vector<int64_t> origin;
+  int64_t old_index = 0;
+  auto rebuild = [&](const std::vector<IndexPair>& from, std::vector<IndexPair>& to) {
+    for (size_t i = 0; i < from.size(); ++i, ++old_index) {
+      if (i % 3 == 0) continue;
+      to.push_back(from[i]);
+      origin.push_back(to.size() % 5 == 0 ? -1 : old_index);
+    }
+  };
+  rebuild(old_list.vertex_triangle, new_list.vertex_triangle);
+  rebuild(old_list.edge_edge, new_list.edge_edge);
+  rebuild(old_list.vertex_plane, new_list.vertex_plane);
+  REQUIRE(!new_list.vertex_plane.empty());
+  cached.carry_pairs(old_list.size(), origin);
+
+  // The upper box moves a little: its pairs are recomputed, the others come from the cache.
+  std::vector<double> y = x;
+  const BodyRange& upper = model.bodies[1];
+  for (int32_t v = upper.vertex_begin; v < upper.vertex_begin + upper.vertex_count; ++v) y[3 * int64_t{v} + 1] -= 2e-3;
+  cached.build(new_list, y.data());
+
+  ContactActiveSet fresh(model, dhat * dhat);
+  fresh.forget_pairs(new_list);
+  fresh.build(new_list, y.data());
+  REQUIRE(fresh.num_active_pairs() > 10);
+  check_same(cached, fresh);
+  CHECK(cached.min_squared_distance(new_list, y.data()) == fresh.min_squared_distance(new_list, y.data()));
+
+  // A cache carried with the wrong origins (the identity) is caught: its stale entries differ.
+  ContactActiveSet misled(model, dhat * dhat);
+  misled.forget_pairs(old_list);
+  misled.build(old_list, x.data());
+  std::vector<int64_t> identity(new_list.size());
+  std::iota(identity.begin(), identity.end(), int64_t{0});
+  misled.carry_pairs(old_list.size(), identity);
+  misled.build(new_list, y.data());
+  CHECK(misled.stencils() != fresh.stencils());
+}
