@@ -1,10 +1,11 @@
-// Value, gradient and Hessian of the incremental potential (see incremental_potential.hpp).
+// The incremental potential as a loop over its terms (see incremental_potential.hpp).
 #include "engine/incremental_potential.hpp"
 
 #include "engine/parallel.hpp"
-#include "kernels/barrier/barrier.hpp"
-
-#include <Eigen/Core>
+#include "engine/terms/elastic_term.hpp"
+#include "engine/terms/inertia_term.hpp"
+#include "engine/terms/joint_term.hpp"
+#include "engine/terms/kinematic_term.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,220 +13,201 @@
 
 namespace nexdyn {
 
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+}  // namespace
+
 IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
                                            BarrierPotential* contact, const JointSet* joints)
     : model_(model), elastic_(elastic), history_(history), contact_(contact), joints_(joints) {
-  if (!contact_) return;
-  contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern(), history.contact_pattern_pairs,
-                                                      history.contact_pattern_stamp);
-  elastic_values_.resize(elastic_.pattern().nnz());
-  bbox_diagonal_ = bodies_bbox_diagonal(model);
-  double mass = 0.0;
-  int64_t free = 0;
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.dirichlet[v] < 0) {
-      mass += model.mass[v];
-      ++free;
-    }
-  average_mass_ = free > 0 ? mass / free : 1.0;
+  add_term(std::make_unique<InertiaTerm>(model));
+  add_term(std::make_unique<ElasticTerm>(model, elastic));
+  if (joints) add_term(std::make_unique<JointTerm>(*joints));
+  if (contact) {
+    auto barrier = std::make_unique<BarrierTerm>(model, *contact, history);
+    barrier_ = barrier.get();
+    add_term(std::move(barrier));
+  }
+}
+
+void IncrementalPotential::set_friction(FrictionPotential* friction) {
+  if (!friction || !barrier_) return;
+  auto term = std::make_unique<FrictionTerm>(*friction, *barrier_);
+  friction_ = term.get();
+  friction_potential_ = friction;
+  add_term(std::move(term));
+}
+
+void IncrementalPotential::set_kinematic(const KinematicTargets* kinematic) {
+  if (kinematic) add_term(std::make_unique<KinematicTerm>(*kinematic));
+}
+
+void IncrementalPotential::add_term(std::unique_ptr<PotentialTerm> term) {
+  if (term->hessian() == TermHessian::stencil_slabs && !contact_pattern_) {
+    contact_pattern_ = std::make_unique<ContactPattern>(elastic_.pattern(), history_.contact_pattern_pairs,
+                                                        history_.contact_pattern_stamp);
+    elastic_values_.resize(elastic_.pattern().nnz());
+  }
+  terms_.push_back(std::move(term));
+}
+
+void IncrementalPotential::set_profile(StepProfile* profile) {
+  profile_ = profile;
+  if (barrier_) barrier_->set_profile(profile);
+  if (friction_) friction_->set_profile(profile);
+}
+
+double IncrementalPotential::weight(const PotentialTerm& term) const {
+  switch (term.scale()) {
+    case TermScale::one: return 1.0;
+    case TermScale::potential: return scale_;
+    case TermScale::contact: return contact_scale_;
+  }
+  return 1.0;
 }
 
 void IncrementalPotential::begin_step(const std::vector<double>& x_tilde, const StepContext& ctx) {
-  x_tilde_ = &x_tilde;
   scale_ = ctx.potential_scale;
   contact_scale_ = ctx.contact_scale;
-  inertia_ = ctx.inertia ? 1.0 : 0.0;
+  for (const auto& term : terms_) term->begin_step(x_tilde, ctx);
   if (contact_pattern_) contact_pattern_->sync();
 }
 
-double IncrementalPotential::inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const {
-  const double* xt = x_tilde_->data();
-  const double* m = model_.mass.data();
-  const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
+void IncrementalPotential::begin_solve(const double* x) {
+  for (size_t k = 0; k < terms_.size(); ++k) {
+    auto preceding_gradient = [&](double* grad) {
+      for (size_t j = 0; j < k; ++j) terms_[j]->add_gradient(x, weight(*terms_[j]), grad);
+    };
+    terms_[k]->begin_solve(x, preceding_gradient);
+  }
+}
+
+double IncrementalPotential::energy(const double* x) const {
   double sum = 0.0;
-  for (int64_t v = begin; v < end; ++v) {
-    double kinetic = 0.0, work = 0.0;
-    for (int d = 0; d < 3; ++d) {
-      const double dx = x[3 * v + d] - xt[3 * v + d];
-      kinetic += dx * dx;
-      work += g[d] * dx;
-    }
-    sum += m[v] * (0.5 * inertia_ * kinetic - scale_ * work);
+  for (const auto& term : terms_) {
+    const double e = term->energy(x);
+    if (!std::isfinite(e)) return kInf;  // an inverted tet or a touching pair
+    sum += weight(*term) * e;
   }
   return sum;
 }
 
-double IncrementalPotential::energy(const double* x) const {
-  const double elastic = elastic_.energy(x);
-  if (!std::isfinite(elastic)) return std::numeric_limits<double>::infinity();
-  double barrier = 0.0;
-  if (contact_) {
-    barrier = contact_->energy(x);
-    if (!std::isfinite(barrier)) return std::numeric_limits<double>::infinity();
-  }
-  const double joints = joints_ ? joints_->energy(x) : 0.0;
-  const double friction = friction_ ? friction_->energy(x) : 0.0;
-  const double kinematic = kinematic_ ? kinematic_->energy(x) : 0.0;
-  const double inertia = deterministic_sum(model_.num_vertices, [&](int64_t begin, int64_t end) {
-    return inertia_gravity_energy(x, begin, end);
-  }, 1024);
-  return inertia + scale_ * (elastic + joints) +
-         contact_scale_ * (history_.kappa * barrier + friction) + kinematic;
-}
-
 void IncrementalPotential::group_energy(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
                                         double* out) {
-  // Inertia, gravity and the kinematic targets (unscaled) go straight into out.
   std::fill(out, out + num_groups, 0.0);
-  grouped_sum(model_.num_vertices, 1024, [&](int64_t v) { return group_of_vertex[v]; },
-              [&](int64_t begin, int64_t end) { return inertia_gravity_energy(x, begin, end); }, out);
-  if (kinematic_) kinematic_->group_energy(x, group_of_vertex, out);
-  auto zeroed = [&](std::vector<double>& w) -> double* {
-    w.assign(num_groups, 0.0);
-    return w.data();
-  };
-  double* elastic = zeroed(group_elastic_);
-  double* joints = zeroed(group_joints_);
-  double* barrier = zeroed(group_barrier_);
-  double* friction = zeroed(group_friction_);
-  elastic_.group_energy(x, group_of_vertex, elastic);
-  if (joints_) joints_->group_energy(x, group_of_vertex, joints);
-  if (contact_) contact_->group_energy(x, group_of_vertex, barrier);
-  if (friction_) friction_->group_energy(x, group_of_vertex, friction);
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  for (int32_t k = 0; k < num_groups; ++k) {
-    if (!std::isfinite(elastic[k]) || !std::isfinite(barrier[k])) {
-      out[k] = kInf;  // an inverted tet or a touching pair (kappa may still be 0: no inf * 0)
-      continue;
-    }
-    out[k] += scale_ * (elastic[k] + joints[k]) + contact_scale_ * (history_.kappa * barrier[k] + friction[k]);
+  for (const auto& term : terms_) {
+    group_term_.assign(num_groups, 0.0);
+    term->add_group_energy(x, group_of_vertex, num_groups, group_term_.data());
+    const double w = weight(*term);
+    for (int32_t g = 0; g < num_groups; ++g)
+      out[g] = std::isfinite(group_term_[g]) ? out[g] + w * group_term_[g] : kInf;
   }
-}
-
-void IncrementalPotential::begin_solve(const double* x) {
-  if (!contact_) return;
-  ProfileScope scope(profile_, StepPhase::barrier);
-  contact_->find_candidates(x, nullptr);
-  // Initial stiffness (IPC supplemental sec. 3) from the gradients of E / s without the barrier
-  // and of the barrier sum, with the held DOFs left out: the kappa that best balances them.
-  const int64_t n = model_.num_dofs();
-  Eigen::VectorXd grad_energy(n), grad_barrier = Eigen::VectorXd::Zero(n);
-  elastic_.energy_gradient(x, grad_energy.data());
-  if (joints_) joints_->add_gradient(x, grad_energy.data());
-  const double* xt = x_tilde_->data();
-  for (int32_t v = 0; v < model_.num_vertices; ++v)
-    for (int d = 0; d < 3; ++d) {
-      const int64_t i = 3 * int64_t{v} + d;
-      grad_energy[i] += -model_.mass[v] * model_.gravity[d] + inertia_ * model_.mass[v] * (x[i] - xt[i]) / scale_;
-    }
-  contact_->assemble(x, 1.0, false);
-  contact_->add_gradient(grad_barrier.data());
-  for (int32_t v = 0; v < model_.num_vertices; ++v)
-    if (model_.dirichlet[v] >= 0) {
-      grad_energy.segment<3>(3 * int64_t{v}).setZero();
-      grad_barrier.segment<3>(3 * int64_t{v}).setZero();
-    }
-  const double dhat2 = contact_->dhat() * contact_->dhat();
-  // The heuristic works on E / s_c = (E without barrier) / s_c + kappa B: its gradient is
-  // (s / s_c) grad(E / s), and its inertia term is M / s_c.
-  const double ratio = scale_ / contact_scale_;
-  grad_energy *= ratio;
-  // The stiffness is a property of the simulation, not of a step: a kappa that changed from
-  // step to step would change the barrier's stored energy under resting contact and pump energy
-  // into a stack. So it is set at the first solve with contact (kappa_min until then) and after
-  // that only raised by the adaptive rule.
-  if (!history_.kappa_from_contact) {
-    history_.kappa = initial_barrier_stiffness(bbox_diagonal_, dhat2, average_mass_ / contact_scale_,
-                                               grad_energy, grad_barrier, history_.kappa_max);
-    history_.kappa_from_contact = grad_barrier.squaredNorm() > 0.0;
-  }
-  prev_min_distance_ = contact_->min_squared_distance(x);
 }
 
 void IncrementalPotential::prepare(const double* x, bool first_iteration) {
-  if (!contact_) return;
-  ProfileScope scope(profile_, StepPhase::barrier);
-  contact_->build_active_set(x);  // derivatives in gradient_hessian(), for its subset only
-  if (!friction_ || friction_->num_stencils() == 0) {
-    contact_pattern_->update(contact_->stencils(), contact_->slab_begin(), first_iteration);
+  for (const auto& term : terms_) term->prepare(x);
+  if (!contact_pattern_) return;
+  // One stencil list for the pattern, the stencil_slabs terms' in list order (copied only when
+  // more than one has stencils: friction's are the barrier's of the lagged state, so the pattern
+  // rarely grows).
+  const std::vector<int32_t>* only_stencils = nullptr;
+  const std::vector<int64_t>* only_slab_begin = nullptr;
+  int with_stencils = 0;
+  for (const auto& term : terms_) {
+    const StencilSlabs s = term->slabs();
+    if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+    only_stencils = s.stencils;
+    only_slab_begin = s.slab_begin;
+    ++with_stencils;
+  }
+  if (with_stencils <= 1) {
+    static const std::vector<int32_t> kNoStencils;
+    static const std::vector<int64_t> kNoSlabs{0};
+    contact_pattern_->update(only_stencils ? *only_stencils : kNoStencils,
+                             only_slab_begin ? *only_slab_begin : kNoSlabs, first_iteration);
     return;
   }
-  // One stencil list for the pattern: the barrier's, then friction's (a copy per iteration; the
-  // friction stencils are the barrier's of the lagged state, so the pattern rarely grows).
-  contact_stencils_ = contact_->stencils();
-  contact_stencils_.insert(contact_stencils_.end(), friction_->stencils().begin(), friction_->stencils().end());
-  contact_slab_begin_ = contact_->slab_begin();
-  const int64_t offset = contact_slab_begin_.back();
-  for (size_t k = 1; k < friction_->slab_begin().size(); ++k)
-    contact_slab_begin_.push_back(offset + friction_->slab_begin()[k]);
-  contact_pattern_->update(contact_stencils_, contact_slab_begin_, first_iteration);
+  stencils_.clear();
+  slab_begin_.assign(1, 0);
+  for (const auto& term : terms_) {
+    const StencilSlabs s = term->slabs();
+    if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+    stencils_.insert(stencils_.end(), s.stencils->begin(), s.stencils->end());
+    const int64_t offset = slab_begin_.back();
+    for (size_t k = 1; k < s.slab_begin->size(); ++k) slab_begin_.push_back(offset + (*s.slab_begin)[k]);
+  }
+  contact_pattern_->update(stencils_, slab_begin_, first_iteration);
 }
 
 void IncrementalPotential::gradient_hessian(const double* x, double* grad, double* values,
                                             const ActiveSubset* subset) {
-  const bool merge = contact_ != nullptr;
-  const CscPattern& pattern = this->pattern();
-  double* elastic_values = merge ? elastic_values_.data() : values;
-  ProfileScope elastic_scope(profile_, StepPhase::elastic);
-  // joints' Hessian included (coupling slabs)
-  elastic_.gradient_hessian(x, grad, elastic_values, subset);
-  if (joints_) joints_->add_gradient(x, grad);
   const IndexRanges all_vertices{{0, model_.num_vertices}};
   const IndexRanges& vertices = subset ? subset->vertices : all_vertices;
-  const double* xt = x_tilde_->data();
-  const double* m = model_.mass.data();
-  const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
-  const double inertia = inertia_, scale = scale_;
-  // Scale the elastic part by s, then add the mass diagonal and the inertia/gravity gradient.
-  parallel_for_ranges(elastic_.value_ranges(vertices), 8192, [&](int64_t begin, int64_t end) {
-    for (int64_t k = begin; k < end; ++k) elastic_values[k] *= scale;
+  parallel_for_ranges(vertices, 4096, [&](int64_t begin, int64_t end) {
+    std::fill(grad + 3 * begin, grad + 3 * end, 0.0);
   });
-  // Contact derivatives, weighted by s_c kappa (friction: s_c), of the stencils that touch the
-  // subset; the pattern's slab array is the barrier's slabs, then friction's.
-  const bool with_friction = friction_ && friction_->num_stencils() > 0;
-  if (merge) {
+  // Gradients in list order; the pattern_values term writes the elastic pattern's values (into
+  // `values` directly when nothing is merged with them) and the stencil_slabs terms their slabs.
+  const DerivativeOutput out{grad, contact_pattern_ ? elastic_values_.data() : values, subset};
+  for (const auto& term : terms_) {
+    ProfileScope scope(term->hessian() == TermHessian::pattern_values ? profile_ : nullptr, StepPhase::elastic);
+    term->add_derivatives(x, weight(*term), out);
+  }
+  if (contact_pattern_) {
     ProfileScope scope(profile_, StepPhase::barrier);
-    const uint8_t* mask = subset ? subset->vertex_mask.data() : nullptr;
-    contact_->compute_derivatives(x, contact_scale_ * history_.kappa, true, mask);
-    if (with_friction) {
-      ProfileScope friction_scope(profile_, StepPhase::friction);
-      friction_->compute_derivatives(x, contact_scale_, true, mask);
+    slab_pieces_.clear();
+    piece_begin_.clear();
+    int64_t begin = 0;
+    for (const auto& term : terms_) {
+      const StencilSlabs s = term->slabs();
+      if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+      slab_pieces_.push_back(s.slabs);
+      piece_begin_.push_back(begin);
+      begin += s.slab_begin->back();
     }
-    contact_pattern_->assemble(elastic_values, contact_->local_hessians().data(), values, &vertices,
-                               with_friction ? friction_->local_hessians().data() : nullptr,
-                               contact_->slab_begin().back());
-  }
-  parallel_for_ranges(vertices, 1024, [&](int64_t begin, int64_t end) {
-    for (int64_t v = begin; v < end; ++v)
-      for (int d = 0; d < 3; ++d) {
-        const int64_t i = 3 * v + d;
-        grad[i] = scale * (grad[i] - m[v] * g[d]) + inertia * m[v] * (x[i] - xt[i]);
-        values[pattern.diagonal[i]] += inertia * m[v];
-      }
-  });
-  if (kinematic_) {
-    kinematic_->add_gradient(x, grad);
-    kinematic_->add_hessian_diagonal(pattern, values);
-  }
-  if (merge) {
-    ProfileScope scope(profile_, StepPhase::barrier);
-    contact_->add_gradient(grad);
-    if (friction_) {
-      ProfileScope friction_scope(profile_, StepPhase::friction);
-      friction_->add_gradient(grad);
+    if (slab_pieces_.empty()) {
+      slab_pieces_.push_back(nullptr);
+      piece_begin_.push_back(0);
     }
+    contact_pattern_->assemble(elastic_values_.data(), slab_pieces_, piece_begin_, values, &vertices);
   }
+  const CscPattern& merged = pattern();
+  for (const auto& term : terms_)
+    if (term->hessian() == TermHessian::diagonal) term->add_diagonal(x, weight(*term), merged, values, subset);
 }
 
 double IncrementalPotential::max_step(const double* x, const double* p) {
-  return contact_ ? contact_->max_step(x, p) : 1.0;
+  double alpha = 1.0;
+  for (const auto& term : terms_) alpha = std::min(alpha, term->max_step(x, p));
+  return alpha;
+}
+
+void IncrementalPotential::sweep(const double* x, const double* p, const uint8_t* moving) {
+  for (const auto& term : terms_) term->sweep(x, p, moving);
+}
+
+const ContactCandidates* IncrementalPotential::sweep_candidates() const {
+  for (const auto& term : terms_)
+    if (const ContactCandidates* pairs = term->swept_pairs()) return pairs;
+  return nullptr;
+}
+
+void IncrementalPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+  for (const auto& term : terms_) term->group_max_steps(x, group_of_vertex, alpha);
 }
 
 std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils() const {
   std::vector<const std::vector<int32_t>*> lists;
-  if (contact_) lists.push_back(&contact_->stencils());
-  if (friction_ && friction_->num_stencils() > 0) lists.push_back(&friction_->stencils());
+  for (const auto& term : terms_)
+    if (const std::vector<int32_t>* stencils = term->coupling_stencils()) lists.push_back(stencils);
   return lists;
+}
+
+const std::vector<const std::vector<int32_t>*>& IncrementalPotential::end_iteration(const double* x) {
+  changed_.clear();
+  for (const auto& term : terms_)
+    if (const std::vector<int32_t>* stencils = term->end_iteration(x)) changed_.push_back(stencils);
+  return changed_;
 }
 
 void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>& delta) {
@@ -239,19 +221,19 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
   std::vector<double>& impulsive = contact_gradient_;
   impulsive.assign(n, 0.0);
   contact_force_.assign(contact_ ? n : 0, 0.0);
-  friction_force_.assign(friction_ ? n : 0, 0.0);
+  friction_force_.assign(friction_potential_ ? n : 0, 0.0);
   const double to_force = -1.0 / contact_scale_;
   if (contact_) {
     contact_->assemble(x, contact_scale_ * history_.kappa, false);
     contact_->add_gradient_with_held(impulsive.data());
     for (int64_t i = 0; i < n; ++i) contact_force_[i] = impulsive[i] * to_force;
   }
-  if (friction_) {  // friction acts with the contact force that carries it
-    friction_->compute_derivatives(x, contact_scale_, false);
-    friction_->add_gradient_with_held(impulsive.data());
+  if (friction_potential_) {  // friction acts with the contact force that carries it
+    friction_potential_->compute_derivatives(x, contact_scale_, false);
+    friction_potential_->add_gradient_with_held(impulsive.data());
     std::vector<double>& friction = friction_gradient_;
     friction.assign(n, 0.0);
-    friction_->add_gradient_with_held(friction.data());
+    friction_potential_->add_gradient_with_held(friction.data());
     for (int64_t i = 0; i < n; ++i) friction_force_[i] = friction[i] * to_force;
   }
   joint_force_.assign(joints_ ? n : 0, 0.0);
@@ -271,17 +253,6 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
       delta[i] = -(impulsive[i] / (scale_ * model_.mass[v]));
     }
   }
-}
-
-bool IncrementalPotential::end_iteration(const double* x) {
-  if (!contact_) return false;
-  const double min_distance = contact_->min_squared_distance(x);
-  const double kappa = update_barrier_stiffness(prev_min_distance_, min_distance, history_.kappa_max,
-                                                history_.kappa, bbox_diagonal_);
-  prev_min_distance_ = min_distance;
-  const bool changed = kappa != history_.kappa;
-  history_.kappa = kappa;
-  return changed;
 }
 
 }  // namespace nexdyn

@@ -24,9 +24,13 @@
 // carried over by the trapezoidal rule, the force of a stiff constraint alternates from step to
 // step and the alternation grows (measured on the double pendulum: the total energy went from
 // 0.01% to 1e3% off in 70 steps). Gravity is measured from
-// x_tilde rather than from the origin: that only shifts E by a constant, but keeps its magnitude
-// near the size of the changes the line search compares, so round-off does not swamp the Armijo
-// test.
+// x_tilde (engine/terms/inertia_term.hpp).
+//
+// The potential is the ordered list of its terms (engine/potential_term.hpp, one file each in
+// engine/terms/): inertia and gravity, elasticity, joints, the barrier, friction, the kinematic
+// targets, each weighted by its class's weight (1, s or s_c). E, its gradient and its Hessian are
+// sums over the list in list order; the Hessian is merged by kind (the elastic pattern's values,
+// then the stencil slabs, then the diagonals).
 //
 // Newton (solver/newton.cpp) drives it through a fixed protocol per solve:
 //   begin_solve(x0)                    contact candidates at x0, barrier stiffness of the step
@@ -43,10 +47,13 @@
 #include "engine/joints.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/model.hpp"
+#include "engine/potential_term.hpp"
 #include "engine/solver/contact_pattern.hpp"
 #include "engine/step_context.hpp"
 #include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
+#include "engine/terms/barrier_term.hpp"
+#include "engine/terms/friction_term.hpp"
 
 #include <memory>
 #include <vector>
@@ -55,23 +62,26 @@ namespace nexdyn {
 
 class IncrementalPotential {
  public:
-  // contact and joints may be null (none in the scene). The joints' constant Hessian is in the
-  // elastic assembly's coupling slabs (engine/joints.hpp). The barrier stiffness and the contact
-  // pattern's pairs live in `history`, which must outlive the potential.
+  // The standard list: inertia and gravity, elasticity, then the joints and the barrier when
+  // given (null: none in the scene). The joints' constant Hessian is in the elastic assembly's
+  // coupling slabs (engine/joints.hpp). The barrier stiffness and the contact pattern's pairs
+  // live in `history`, which must outlive the potential.
   IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
                        BarrierPotential* contact = nullptr, const JointSet* joints = nullptr);
-  // Lagged friction over the contacts (null: frictionless), weighted like the barrier by s_c.
-  void set_friction(FrictionPotential* friction) { friction_ = friction; }
-  // Kinematic vertices pulled to their targets (engine/kinematic_targets.hpp; null: none). Their
-  // augmented Lagrangian is added unscaled, next to the inertia it is measured against.
-  void set_kinematic(const KinematicTargets* kinematic) { kinematic_ = kinematic; }
+  // Appends lagged friction over the contacts (needs the barrier; null: frictionless).
+  void set_friction(FrictionPotential* friction);
+  // Appends the kinematic targets (engine/kinematic_targets.hpp; null: none).
+  void set_kinematic(const KinematicTargets* kinematic);
+  // Appends any other term (after those above).
+  void add_term(std::unique_ptr<PotentialTerm> term);
+  const std::vector<std::unique_ptr<PotentialTerm>>& terms() const { return terms_; }
 
   // Fixes x_tilde and the attempt's weights (s, s_c, whether inertia is present) for the coming
   // solves, and brings the contact pattern to the history's pairs.
   void begin_step(const std::vector<double>& x_tilde, const StepContext& ctx);
 
-  // Times elastic and barrier assembly into `profile` (null: no timing).
-  void set_profile(StepProfile* profile) { profile_ = profile; }
+  // Times elastic, barrier and friction assembly into `profile` (null: no timing).
+  void set_profile(StepProfile* profile);
 
   void begin_solve(const double* x);
   // E split over groups of moving vertices: out[g] (num_groups values, overwritten) sums the terms
@@ -88,26 +98,21 @@ class IncrementalPotential {
   // others hold leftovers that the caller must not use.
   void gradient_hessian(const double* x, double* grad, double* hessian_values,
                         const ActiveSubset* subset = nullptr);
-  // Largest fraction of the step p from x that is collision-free (1 without contact).
+  // Largest fraction of the step p from x that every term allows (1 without contact).
   double max_step(const double* x, const double* p);
   // max_step for independent groups of vertices (barrier_potential.hpp): sweep(x, p) finds the
-  // candidates of x -> x + p (null: no contact), the caller joins its groups over them, then
+  // candidates of x -> x + p, the caller joins its groups over sweep_candidates(), then
   // group_max_steps lowers alpha[g] to each group's collision-free fraction.
-  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr) {
-    if (contact_) contact_->sweep(x, p, moving);
-  }
-  const ContactCandidates* sweep_candidates() const { return contact_ ? &contact_->candidates() : nullptr; }
-  void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
-    if (contact_) contact_->group_max_steps(x, group_of_vertex, alpha);
-  }
+  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr);
+  const ContactCandidates* sweep_candidates() const;
+  void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
   // The stencil lists (num x 4 vertex ids, -1 = none) that couple vertices in the Hessian beyond
   // the elastic pattern: the barrier's active set and the lagged friction contacts.
   std::vector<const std::vector<int32_t>*> coupling_stencils() const;
-  // The barrier's active stencils (what a change of kappa changes).
-  const std::vector<int32_t>* barrier_stencils() const { return contact_ ? &contact_->stencils() : nullptr; }
 
-  // Returns true when the barrier stiffness changed (so E changed: re-evaluate it).
-  bool end_iteration(const double* x);
+  // At Newton's accepted point x: the stencil lists whose energy changed there (an adaptive
+  // stiffness raised; empty: E did not change).
+  const std::vector<const std::vector<int32_t>*>& end_iteration(const double* x);
 
   const CscPattern& pattern() const {
     return contact_pattern_ ? contact_pattern_->pattern() : static_cast<const CscPattern&>(elastic_.pattern());
@@ -117,6 +122,8 @@ class IncrementalPotential {
   const CscPattern& elastic_pattern() const { return elastic_.pattern(); }
 
   double barrier_stiffness() const { return history_.kappa; }
+  BarrierTerm* barrier() const { return barrier_; }     // null without contact
+  FrictionTerm* friction() const { return friction_; }  // null without friction
   // At the solution x of a step: the acceleration that the impulsive forces (contact
   // f_c = -kappa grad B, friction f_f = -grad D and the joint forces) put into a_{n+1} through
   // update_implicit, delta = (s_c / s) M^-1 f on free vertices (0 on held ones), which the step
@@ -126,36 +133,36 @@ class IncrementalPotential {
   const std::vector<double>& contact_force() const { return contact_force_; }    // (3n) [N]
   const std::vector<double>& friction_force() const { return friction_force_; }  // (3n) [N], or empty
   const std::vector<double>& joint_force() const { return joint_force_; }        // (3n) [N], or empty
-  BarrierPotential* contact() const { return contact_; }
 
  private:
-  // Inertia and gravity energy of vertices [begin, end).
-  double inertia_gravity_energy(const double* x, int64_t begin, int64_t end) const;
+  double weight(const PotentialTerm& term) const;
 
   const Model& model_;
   ElasticAssembly& elastic_;
-  StepHistory& history_;  // kappa, kappa_max, kappa_from_contact
+  StepHistory& history_;  // kappa
+  std::vector<std::unique_ptr<PotentialTerm>> terms_;
+  // The terms the step's impulse and friction lag need by name (owned by terms_).
+  BarrierTerm* barrier_ = nullptr;
+  FrictionTerm* friction_ = nullptr;
   BarrierPotential* contact_ = nullptr;
+  FrictionPotential* friction_potential_ = nullptr;
   const JointSet* joints_ = nullptr;
-  FrictionPotential* friction_ = nullptr;
-  const KinematicTargets* kinematic_ = nullptr;
-  // Barrier and friction stencils as one list for the pattern (friction after the barrier).
-  std::vector<int32_t> contact_stencils_;
-  std::vector<int64_t> contact_slab_begin_;
-  StepProfile* profile_ = nullptr;
-  std::unique_ptr<ContactPattern> contact_pattern_;
+  std::unique_ptr<ContactPattern> contact_pattern_;  // with a stencil_slabs term
+  // The stencil_slabs terms' stencils as one list for the pattern, in list order (a copy per
+  // iteration when more than one has stencils), and their slab arrays as pieces.
+  std::vector<int32_t> stencils_;
+  std::vector<int64_t> slab_begin_;
+  std::vector<const double*> slab_pieces_;
+  std::vector<int64_t> piece_begin_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
+  std::vector<double> group_term_;      // (num_groups) workspace of group_energy
+  std::vector<const std::vector<int32_t>*> changed_;  // end_iteration's answer
   // (3n) outputs and workspaces of impulsive_forces
   std::vector<double> contact_force_, friction_force_, joint_force_, contact_gradient_, friction_gradient_,
       joint_gradient_;
-  // (num_groups) workspaces of group_energy, one per term
-  std::vector<double> group_elastic_, group_joints_, group_barrier_, group_friction_;
-  const std::vector<double>* x_tilde_ = nullptr;
-  double scale_ = 1.0;
-  double contact_scale_ = 1.0;
-  double inertia_ = 1.0;
-  double bbox_diagonal_ = 1.0, average_mass_ = 0.0;
-  double prev_min_distance_ = 0.0;  // squared, at the solve's last accepted point
+  StepProfile* profile_ = nullptr;
+  double scale_ = 1.0;          // s
+  double contact_scale_ = 1.0;  // s_c
 };
 
 }  // namespace nexdyn

@@ -104,9 +104,9 @@ Eigen::Vector3d JointSet::force(const double* x, int64_t j) const {
   return multiplier(j) - stiffness_[j] * violation(x, j);
 }
 
-void JointSet::add_gradient(const double* x, double* grad) const {
+void JointSet::add_gradient(const double* x, double* grad, double scale) const {
   for (int64_t j = 0; j < size(); ++j) {
-    const Eigen::Vector3d f = -weight_ * force(x, j);  // w (k c - lambda)
+    const Eigen::Vector3d f = -(scale * weight_) * force(x, j);  // scale w (k c - lambda)
     const Joint& joint = joints_[j];
     for (int k = 0; k < joint.count; ++k)
       Eigen::Vector3d::Map(grad + 3 * int64_t{joint.vertex[k]}) += joint.coefficient[k] * f;

@@ -59,7 +59,7 @@ class JointSet {
   // (group_of_vertex[v], -1 = does not move).
   void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   // grad += w sum_j J_j^T (k_j c_j - lambda_j).
-  void add_gradient(const double* x, double* grad) const;
+  void add_gradient(const double* x, double* grad, double scale = 1.0) const;
   // lambda_j <- lambda_j - k_j c_j(x).
   void update_multipliers(const double* x);
   void set_multiplier(int64_t j, const Eigen::Vector3d& lambda) { multiplier(j) = lambda; }

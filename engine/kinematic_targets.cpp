@@ -81,17 +81,17 @@ void KinematicTargets::group_energy(const double* x, const int32_t* group_of_ver
   }
 }
 
-void KinematicTargets::add_gradient(const double* x, double* grad) const {
+void KinematicTargets::add_gradient(const double* x, double* grad, double scale) const {
   for (size_t i = 0; i < vertices_.size(); ++i)
     for (int d = 0; d < 3; ++d) {
       const size_t dof = 3 * size_t(vertices_[i]) + d;
-      grad[dof] += stiffness_[i] * (x[dof] - target_[3 * i + d]) - history_.kinematic_multipliers[3 * i + d];
+      grad[dof] += scale * (stiffness_[i] * (x[dof] - target_[3 * i + d]) - history_.kinematic_multipliers[3 * i + d]);
     }
 }
 
-void KinematicTargets::add_hessian_diagonal(const CscPattern& pattern, double* values) const {
+void KinematicTargets::add_hessian_diagonal(const CscPattern& pattern, double* values, double scale) const {
   for (size_t i = 0; i < vertices_.size(); ++i)
-    for (int d = 0; d < 3; ++d) values[pattern.diagonal[3 * size_t(vertices_[i]) + d]] += stiffness_[i];
+    for (int d = 0; d < 3; ++d) values[pattern.diagonal[3 * size_t(vertices_[i]) + d]] += scale * stiffness_[i];
 }
 
 void KinematicTargets::update_multipliers(const double* x) {

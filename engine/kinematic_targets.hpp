@@ -50,9 +50,9 @@ class KinematicTargets {
   // total[g] += the energy of the targets of vertices in group g (group_of_vertex[v], -1 = none).
   void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   double energy(const double* x) const;
-  void add_gradient(const double* x, double* grad) const;
+  void add_gradient(const double* x, double* grad, double scale = 1.0) const;
   // values[diagonal of each kinematic DOF] += k_i.
-  void add_hessian_diagonal(const CscPattern& pattern, double* values) const;
+  void add_hessian_diagonal(const CscPattern& pattern, double* values, double scale = 1.0) const;
   // lambda_i <- lambda_i - k_i (x_i - t_i).
   void update_multipliers(const double* x);
   // The summed multipliers over their s [N]: after a step, the force that kept the kinematic

@@ -63,9 +63,11 @@ Simulation::Simulation(const Scene& scene)
       elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
       friction_(make_friction(scene)), kinematic_(scene.model, history_),
       potential_(scene.model, elastic_, history_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
-  potential_.set_profile(&profile_);
+  // The potential's terms, in order (engine/incremental_potential.hpp): inertia and gravity,
+  // elasticity, joints and the barrier (the constructor), then friction and the kinematic targets.
   potential_.set_friction(friction_.get());
   if (!kinematic_.empty()) potential_.set_kinematic(&kinematic_);
+  potential_.set_profile(&profile_);
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
   x_next_.resize(n);
@@ -205,8 +207,7 @@ StepContext Simulation::choose_scheme(double dt, double t_next, int level) {
     // new ones, and a body resting on a slope would be kicked by the difference; implicit Euler,
     // whose contact weight is its own steady one, takes this step instead and leaves the memory
     // for the next. Without touching contacts the memory is zero.
-    contact_->find_candidates(state_.x.data(), nullptr);
-    if (contact_->min_squared_distance(state_.x.data()) < contact_->dhat() * contact_->dhat())
+    if (potential_.barrier()->in_contact(state_.x.data()))
       scheme = &kEuler;
     else
       history_.contact_memory.assign(model_.num_dofs(), 0.0);
@@ -307,7 +308,7 @@ StepOutcome Simulation::start_point(const StepContext& ctx) {
         const int64_t i = 3 * int64_t{v} + d;
         motion_[i] = state_.x[i] + ctx.dt * state_.v[i] - x_next_[i];
       }
-  const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+  const double alpha = potential_.max_step(x_next_.data(), motion_.data());
   std::vector<double>& trial = a_next_;
   trial.resize(n);
   for (int64_t i = 0; i < n; ++i) trial[i] = x_next_[i] + alpha * motion_[i];
@@ -348,7 +349,7 @@ NewtonResult Simulation::solve_kinematic(const StepContext& ctx, int& iterations
     if (result.status != StepStatus::ok) return result;
     kinematic_.update_multipliers(x_next_.data());  // the holding force, carried to the next step
     kinematic_.motion_to_targets(x_next_.data(), motion_.data());
-    const double alpha = contact_->max_step(x_next_.data(), motion_.data());
+    const double alpha = potential_.max_step(x_next_.data(), motion_.data());
     const int64_t n = model_.num_dofs();
     for (int64_t i = 0; i < n; ++i) x_next_[i] += alpha * motion_[i];
     if (alpha == 1.0) break;
@@ -397,11 +398,7 @@ NewtonResult Simulation::solve_with_joints(const StepContext& ctx, int& iteratio
 void Simulation::lag_friction(const StepContext& ctx, const std::vector<double>& x) {
   // Before the first solve with contact the barrier stiffness is still unset: set it from x.
   if (potential_.barrier_stiffness() == 0.0) potential_.begin_solve(x.data());
-  ProfileScope scope(&profile_, StepPhase::barrier);
-  contact_->find_candidates(x.data(), nullptr);
-  contact_->build_active_set(x.data());
-  ProfileScope friction_scope(&profile_, StepPhase::friction);
-  friction_->lag(*contact_, x.data(), potential_.barrier_stiffness(), state_.x.data(), ctx.dt);
+  potential_.friction()->lag(x.data(), state_.x.data(), ctx.dt);
 }
 
 void Simulation::update_after_solve(const StepContext& ctx) {

@@ -199,9 +199,10 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
   return changed;
 }
 
-void ContactPattern::assemble(const double* elastic_values, const double* slabs, double* values,
-                              const IndexRanges* vertices, const double* more_slabs, int64_t split) const {
-  if (!more_slabs) split = std::numeric_limits<int64_t>::max();
+void ContactPattern::assemble(const double* elastic_values, const std::vector<const double*>& pieces,
+                              const std::vector<int64_t>& piece_begin, double* values,
+                              const IndexRanges* vertices) const {
+  const int last_piece = static_cast<int>(pieces.size()) - 1;
   const CscPattern& e = elastic_;
   const IndexRanges all{{0, merged_.num_dofs / 3}};
   parallel_for_ranges(vertices ? *vertices : all, 256, [&](int64_t begin, int64_t end) {
@@ -223,7 +224,9 @@ void ContactPattern::assemble(const double* elastic_values, const double* slabs,
           const int rows = en.diagonal ? c + 1 : 3;
           double* out = values + en.value + shift;
           const int64_t source = en.source;
-          const double* in = (source < split ? slabs + source : more_slabs + (source - split)) + c * en.stride;
+          int p = last_piece;
+          while (source < piece_begin[p]) --p;
+          const double* in = pieces[p] + (source - piece_begin[p]) + c * en.stride;
           for (int r = 0; r < rows; ++r) out[r] += in[r];
         }
       }

@@ -51,11 +51,15 @@ class ContactPattern {
   // values (merged nnz) = elastic values placed into the merged pattern + the sum over stencils
   // of their slabs (laid out as given to update()).
   // With vertex ranges, only those vertices' columns are written.
-  // The slab array may come in two pieces: slab indices from `split` on are read from
-  // more_slabs[index - split] (the barrier's slabs, then friction's, without a copy).
+  // The slab array may come in pieces, one per term (the barrier's slabs, then friction's,
+  // without a copy): slab index k is read from pieces[p][k - piece_begin[p]] for the last p with
+  // piece_begin[p] <= k (piece_begin[0] = 0, increasing).
+  void assemble(const double* elastic_values, const std::vector<const double*>& pieces,
+                const std::vector<int64_t>& piece_begin, double* values, const IndexRanges* vertices = nullptr) const;
   void assemble(const double* elastic_values, const double* contact_slabs, double* values,
-                const IndexRanges* vertices = nullptr, const double* more_slabs = nullptr,
-                int64_t split = 0) const;
+                const IndexRanges* vertices = nullptr) const {
+    assemble(elastic_values, {contact_slabs}, {0}, values, vertices);
+  }
 
  private:
   void rebuild(std::vector<std::pair<int32_t, int32_t>> pairs);

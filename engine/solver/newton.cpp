@@ -135,11 +135,6 @@ void NewtonSolver::thaw(const std::vector<int32_t>& stencils) {
     if (v >= 0) vertex_token_[v] = 0;
 }
 
-void NewtonSolver::unfreeze_contacts() {
-  // Only the islands with barrier stencils feel kappa; one cleared vertex thaws its island.
-  if (const std::vector<int32_t>* stencils = potential_.barrier_stencils()) thaw(*stencils);
-}
-
 bool NewtonSolver::prepare_potential(const double* x, int iteration, NewtonResult& result) {
   try {
     potential_.prepare(x, iteration == 0);
@@ -225,9 +220,7 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   return -1;
 }
 
-NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
-  NewtonResult result;
-  const int64_t n = static_cast<int64_t>(x.size());
+void NewtonSolver::forget_unused_systems() {
   // Forget the islands that went unused for kKeepIslandSolves solves (a frozen island is not looked
   // up, so a shorter memory would throw away the analyses of bodies that merely rest; big systems
   // rarely recur, and their analyses are big, so they go after kKeepBigIslandSolves), and every
@@ -250,7 +243,187 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     token_size_.assign(1, 0);
   }
   keep_converged_ = false;
+}
 
+bool NewtonSolver::solve_direction(const double* x, int it, NewtonResult& result) {
+  if (!prepare_potential(x, it, result)) return false;
+  if (potential_.pattern_version() != analyzed_version_) collect_constrained_values();
+
+  // Islands at x; the ones that have not converged are assembled, factorised and solved.
+  islands_.build(potential_.coupling_stencils());
+  active_.clear();
+  for (int32_t i = 0; i < islands_.num_islands(); ++i)
+    if (!frozen(i)) active_.push_back(i);
+  update_subset();
+  potential_.gradient_hessian(x, grad_.data(), values_.data(), &subset_);
+  eliminate_dirichlet(grad_.data(), values_.data());
+  for (const auto& [begin, end] : subset_.vertices)
+    for (int64_t i = 3 * int64_t{begin}; i < 3 * int64_t{end}; ++i)
+      if (!std::isfinite(grad_[i])) {
+        const int32_t v = static_cast<int32_t>(i / 3);
+        result.status = StepStatus::non_finite;
+        result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it) +
+                         ", at vertex " + std::to_string(v) + " of " + body_of_vertex(model_, v);
+        return false;
+      }
+  std::fill(direction_.begin(), direction_.end(), 0.0);
+  ++iteration_count_;
+  const int64_t failed = solve_islands(result.analyses);
+  double factor_bytes = 0.0;
+  for (const auto& [hash, bucket] : systems_)
+    for (const auto& system : bucket) factor_bytes += system->factor_bytes();
+  peak_factor_bytes_ = std::max(peak_factor_bytes_, factor_bytes);
+  if (failed < 0) return true;
+  result.status = active_status_[failed];
+  result.message = (result.status == StepStatus::factorization_failed ? "factorisation failed"
+                                                                      : "the linear solver failed") +
+                   std::string(" at Newton iteration ") + std::to_string(it) + ": " +
+                   active_system_[failed]->error();
+  return false;
+}
+
+bool NewtonSolver::mark_moving_islands(const NewtonSettings& settings, NewtonResult& result) {
+  // p = -H^-1 g on the active islands. An island below the tolerance has converged: it stays
+  // where it is (p = 0 there) until it changes or kappa does.
+  result.increment = 0.0;
+  island_moves_.assign(islands_.num_islands(), 0);
+  bool any_moving = false;
+  for (int32_t i : active_) {
+    double max_step = 0.0;
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+      for (int d = 0; d < 3; ++d) {
+        double& p = direction_[3 * int64_t{islands_.vertices()[k]} + d];
+        p = -p;
+        max_step = std::max(max_step, std::abs(p));
+      }
+    const double increment = max_step / settings.dt;
+    result.increment = std::max(result.increment, increment);
+    if (increment >= settings.tolerance) {
+      island_moves_[i] = 1;
+      any_moving = true;
+      continue;
+    }
+    mark_converged(i);
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+      for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] = 0.0;
+  }
+  return any_moving;
+}
+
+int32_t NewtonSolver::build_groups(const double* x) {
+  // Groups: the moving islands, joined where a pair of the CCD sweep links two of them (they
+  // may meet along the step, so they share a step length and an energy test).
+  const int32_t num_islands = islands_.num_islands();
+  vertex_moves_.resize(model_.num_vertices);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t i = islands_.island_of(v);
+    vertex_moves_[v] = i >= 0 && island_moves_[i];
+  }
+  potential_.sweep(x, direction_.data(), vertex_moves_.data());
+  groups_.reset(num_islands);
+  if (const ContactCandidates* c = potential_.sweep_candidates()) {
+    const std::vector<int32_t>& island_of = islands_.island_of_vertex();
+    auto join = [&](std::initializer_list<int32_t> vertices) {
+      int32_t first = -1;
+      for (int32_t v : vertices) {
+        const int32_t i = island_of[v];
+        if (i < 0 || !island_moves_[i]) continue;
+        if (first < 0) first = i;
+        else groups_.join(first, i);
+      }
+    };
+    for (const IndexPair& pr : c->vertex_triangle) {
+      const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+      join({pr.first, t[0], t[1], t[2]});
+    }
+    for (const IndexPair& pr : c->edge_edge) {
+      const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+      const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+      join({ea[0], ea[1], eb[0], eb[1]});
+    }
+  }
+  int32_t num_groups = 0;
+  group_of_island_.assign(num_islands, -1);
+  for (int32_t i = 0; i < num_islands; ++i) {
+    if (!island_moves_[i]) continue;
+    const int32_t root = groups_.find(i);  // the smallest island of the group: numbered first
+    group_of_island_[i] = root == i ? num_groups++ : group_of_island_[root];
+  }
+  group_of_vertex_.resize(model_.num_vertices);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t i = islands_.island_of(v);
+    group_of_vertex_[v] = i < 0 ? -1 : group_of_island_[i];
+  }
+  return num_groups;
+}
+
+bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& result) {
+  // Each group's largest collision-free fraction of its own motion, then its slope.
+  group_alpha_.assign(num_groups, 1.0);
+  potential_.group_max_steps(x, group_of_vertex_.data(), group_alpha_.data());
+  for (int32_t k = 0; k < num_groups; ++k)
+    if (!(group_alpha_[k] > 0.0)) {
+      result.status = StepStatus::line_search_failed;
+      result.message = "continuous collision detection allows no motion along the Newton direction";
+      return false;
+    }
+  group_slope_.assign(num_groups, 0.0);
+  const int64_t n = model_.num_dofs();
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t g = group_of_vertex_[i / 3];
+    if (g < 0) continue;
+    direction_[i] *= group_alpha_[g];
+    group_slope_[g] += grad_[i] * direction_[i];
+  }
+  return true;
+}
+
+bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult& result) {
+  // Backtracking, group by group: the energy is a sum over groups plus terms that do not move, so
+  // each group halves its own step until its own part of E decreases enough. Energies are
+  // compared with a round-off allowance: near the minimum the decrease s*alpha*g.p can be smaller
+  // than the error of summing E itself. The accepted point is left in trial_.
+  ProfileScope scope(profile_, StepPhase::line_search);
+  const int64_t n = model_.num_dofs();
+  group_start_.resize(num_groups);
+  group_trial_.resize(num_groups);
+  potential_.group_energy(x, group_of_vertex_.data(), num_groups, group_start_.data());
+  std::fill(group_alpha_.begin(), group_alpha_.end(), 1.0);
+  group_done_.assign(num_groups, 0);
+  int32_t pending = num_groups;
+  while (pending > 0) {
+    parallel_for(n, [&](int64_t begin, int64_t end) {
+      for (int64_t i = begin; i < end; ++i) {
+        const int32_t g = group_of_vertex_[i / 3];
+        trial_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
+      }
+    }, 8192);
+    potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+    for (int32_t k = 0; k < num_groups; ++k) {
+      if (group_done_[k]) continue;
+      const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
+      if (group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise) {
+        group_done_[k] = 1;
+        --pending;
+        continue;
+      }
+      group_alpha_[k] *= 0.5;
+      if (group_alpha_[k] < kMinStepLength) {
+        result.status = StepStatus::line_search_failed;
+        result.message = format("line search found no decrease along the Newton direction "
+                                "(increment %.3g m/s, energy %.6g)", result.increment, group_start_[k]);
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+// The stages of one solve: per iteration, the direction on the islands not yet converged, the
+// islands that still move, their groups and CCD caps, the line search, the terms' adaptive updates.
+NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
+  NewtonResult result;
+  forget_unused_systems();
   potential_.begin_solve(x.data());
   if (!std::isfinite(potential_.energy(x.data()))) {
     result.status = StepStatus::non_finite;
@@ -260,68 +433,9 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     return result;
   }
   for (int it = 0; it < settings.max_iterations; ++it) {
-    if (!prepare_potential(x.data(), it, result)) return result;
-    if (potential_.pattern_version() != analyzed_version_) collect_constrained_values();
-
-    // Islands at x; the ones that have not converged are assembled, factorised and solved.
-    islands_.build(potential_.coupling_stencils());
-    active_.clear();
-    for (int32_t i = 0; i < islands_.num_islands(); ++i)
-      if (!frozen(i)) active_.push_back(i);
-    update_subset();
-    potential_.gradient_hessian(x.data(), grad_.data(), values_.data(), &subset_);
-    eliminate_dirichlet(grad_.data(), values_.data());
-    for (const auto& [begin, end] : subset_.vertices)
-      for (int64_t i = 3 * int64_t{begin}; i < 3 * int64_t{end}; ++i)
-        if (!std::isfinite(grad_[i])) {
-          const int32_t v = static_cast<int32_t>(i / 3);
-          result.status = StepStatus::non_finite;
-          result.message = "NaN or infinity in the gradient at Newton iteration " + std::to_string(it) +
-                           ", at vertex " + std::to_string(v) + " of " + body_of_vertex(model_, v);
-          return result;
-        }
-    std::fill(direction_.begin(), direction_.end(), 0.0);
-    ++iteration_count_;
-    const int64_t failed = solve_islands(result.analyses);
-    double factor_bytes = 0.0;
-    for (const auto& [hash, bucket] : systems_)
-      for (const auto& system : bucket) factor_bytes += system->factor_bytes();
-    peak_factor_bytes_ = std::max(peak_factor_bytes_, factor_bytes);
-    if (failed >= 0) {
-      result.status = active_status_[failed];
-      result.message = (result.status == StepStatus::factorization_failed ? "factorisation failed"
-                                                                          : "the linear solver failed") +
-                       std::string(" at Newton iteration ") + std::to_string(it) + ": " +
-                       active_system_[failed]->error();
-      return result;
-    }
-
-    // p = -H^-1 g on the active islands. An island below the tolerance has converged: it stays
-    // where it is (p = 0 there) until it changes or kappa does.
+    if (!solve_direction(x.data(), it, result)) return result;
     result.iterations = it + 1;
-    result.increment = 0.0;
-    const int32_t num_islands = islands_.num_islands();
-    island_moves_.assign(num_islands, 0);
-    bool any_moving = false;
-    for (int32_t i : active_) {
-      double max_step = 0.0;
-      for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
-        for (int d = 0; d < 3; ++d) {
-          double& p = direction_[3 * int64_t{islands_.vertices()[k]} + d];
-          p = -p;
-          max_step = std::max(max_step, std::abs(p));
-        }
-      const double increment = max_step / settings.dt;
-      result.increment = std::max(result.increment, increment);
-      if (increment >= settings.tolerance) {
-        island_moves_[i] = 1;
-        any_moving = true;
-        continue;
-      }
-      mark_converged(i);
-      for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
-        for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] = 0.0;
-    }
+    const bool any_moving = mark_moving_islands(settings, result);
     NewtonIterate* record = nullptr;
     if (history_) {
       record = &history_->emplace_back();
@@ -331,106 +445,10 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       if (history_points_ && !any_moving) record->x = x;
     }
     if (!any_moving) return result;
-
-    // Groups: the moving islands, joined where a pair of the CCD sweep links two of them (they
-    // may meet along the step, so they share a step length and an energy test).
-    vertex_moves_.resize(model_.num_vertices);
-    for (int32_t v = 0; v < model_.num_vertices; ++v) {
-      const int32_t i = islands_.island_of(v);
-      vertex_moves_[v] = i >= 0 && island_moves_[i];
-    }
-    potential_.sweep(x.data(), direction_.data(), vertex_moves_.data());
-    groups_.reset(num_islands);
-    if (const ContactCandidates* c = potential_.sweep_candidates()) {
-      const std::vector<int32_t>& island_of = islands_.island_of_vertex();
-      auto join = [&](std::initializer_list<int32_t> vertices) {
-        int32_t first = -1;
-        for (int32_t v : vertices) {
-          const int32_t i = island_of[v];
-          if (i < 0 || !island_moves_[i]) continue;
-          if (first < 0) first = i;
-          else groups_.join(first, i);
-        }
-      };
-      for (const IndexPair& pr : c->vertex_triangle) {
-        const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-        join({pr.first, t[0], t[1], t[2]});
-      }
-      for (const IndexPair& pr : c->edge_edge) {
-        const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-        const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-        join({ea[0], ea[1], eb[0], eb[1]});
-      }
-    }
-    int32_t num_groups = 0;
-    group_of_island_.assign(num_islands, -1);
-    for (int32_t i = 0; i < num_islands; ++i) {
-      if (!island_moves_[i]) continue;
-      const int32_t root = groups_.find(i);  // the smallest island of the group: numbered first
-      group_of_island_[i] = root == i ? num_groups++ : group_of_island_[root];
-    }
-    group_of_vertex_.resize(model_.num_vertices);
-    for (int32_t v = 0; v < model_.num_vertices; ++v) {
-      const int32_t i = islands_.island_of(v);
-      group_of_vertex_[v] = i < 0 ? -1 : group_of_island_[i];
-    }
-
-    // Each group's largest collision-free fraction of its own motion, then its slope.
-    group_alpha_.assign(num_groups, 1.0);
-    potential_.group_max_steps(x.data(), group_of_vertex_.data(), group_alpha_.data());
-    for (int32_t k = 0; k < num_groups; ++k)
-      if (!(group_alpha_[k] > 0.0)) {
-        result.status = StepStatus::line_search_failed;
-        result.message = "continuous collision detection allows no motion along the Newton direction";
-        return result;
-      }
+    const int32_t num_groups = build_groups(x.data());
+    if (!cap_steps(x.data(), num_groups, result)) return result;
     if (record) record->ccd_cap = group_alpha_;
-    group_slope_.assign(num_groups, 0.0);
-    for (int64_t i = 0; i < n; ++i) {
-      const int32_t g = group_of_vertex_[i / 3];
-      if (g < 0) continue;
-      direction_[i] *= group_alpha_[g];
-      group_slope_[g] += grad_[i] * direction_[i];
-    }
-
-    // Backtracking line search, group by group: the energy is a sum over groups plus terms that
-    // do not move, so each group halves its own step until its own part of E decreases enough.
-    // Energies are compared with a round-off allowance: near the minimum the decrease
-    // s*alpha*g.p can be smaller than the error of summing E itself.
-    {
-      ProfileScope scope(profile_, StepPhase::line_search);
-      group_start_.resize(num_groups);
-      group_trial_.resize(num_groups);
-      potential_.group_energy(x.data(), group_of_vertex_.data(), num_groups, group_start_.data());
-      std::fill(group_alpha_.begin(), group_alpha_.end(), 1.0);
-      group_done_.assign(num_groups, 0);
-      int32_t pending = num_groups;
-      while (pending > 0) {
-        parallel_for(n, [&](int64_t begin, int64_t end) {
-          for (int64_t i = begin; i < end; ++i) {
-            const int32_t g = group_of_vertex_[i / 3];
-            trial_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
-          }
-        }, 8192);
-        potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
-        for (int32_t k = 0; k < num_groups; ++k) {
-          if (group_done_[k]) continue;
-          const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
-          if (group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise) {
-            group_done_[k] = 1;
-            --pending;
-            continue;
-          }
-          group_alpha_[k] *= 0.5;
-          if (group_alpha_[k] < kMinStepLength) {
-            result.status = StepStatus::line_search_failed;
-            result.message = format("line search found no decrease along the Newton direction "
-                                    "(increment %.3g m/s, energy %.6g)", result.increment, group_start_[k]);
-            return result;
-          }
-        }
-      }
-    }
+    if (!line_search(x.data(), num_groups, result)) return result;
     x.swap(trial_);
     if (record) {
       record->slope = group_slope_;
@@ -439,7 +457,8 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
       record->step_length = group_alpha_;
       if (history_points_) record->x = x;
     }
-    if (potential_.end_iteration(x.data())) unfreeze_contacts();
+    // A term whose energy changed there (kappa raised) thaws the islands of its stencils.
+    for (const std::vector<int32_t>* stencils : potential_.end_iteration(x.data())) thaw(*stencils);
   }
   result.status = StepStatus::max_iterations;
   result.message = format("Newton did not converge in the iteration limit (last increment "

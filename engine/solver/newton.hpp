@@ -110,11 +110,22 @@ class NewtonSolver {
   // Factorises and solves the active islands: direction_ = H^-1 grad_ on their DOFs. Returns
   // the index in active_ of the first island that failed (active_status_ says how), or -1.
   int64_t solve_islands(int& analyses);
+  // The stages of solve(), in order (each false/failing fills result's status and message):
+  void forget_unused_systems();
+  // Assembles the active islands at x and solves them into direction_ (= H^-1 g).
+  bool solve_direction(const double* x, int it, NewtonResult& result);
+  // direction_ = -H^-1 g; islands below the tolerance converge (p = 0); true when any moves.
+  bool mark_moving_islands(const NewtonSettings& settings, NewtonResult& result);
+  // Groups of moving islands linked by pairs of the CCD sweep of x -> x + p; returns their count.
+  int32_t build_groups(const double* x);
+  // Scales each group's direction to its collision-free fraction; the groups' slopes.
+  bool cap_steps(const double* x, int32_t num_groups, NewtonResult& result);
+  // Backtracking per group from x; the accepted point is left in trial_.
+  bool line_search(const double* x, int32_t num_groups, NewtonResult& result);
   // Convergence bookkeeping: a converged island's vertices share a token (islands.hpp numbers
   // change from iteration to iteration; tokens say "this exact island converged").
   bool frozen(int32_t island) const;
   void mark_converged(int32_t island);
-  void unfreeze_contacts();
   // subset_ = the vertices of the active islands and the tets that touch them.
   void update_subset();
 

@@ -1,0 +1,29 @@
+#include "engine/terms/friction_term.hpp"
+
+namespace nexdyn {
+
+void FrictionTerm::lag(const double* x, const double* x_start, double dt) {
+  barrier_.build_active_set_at(x);
+  ProfileScope scope(profile_, StepPhase::friction);
+  friction_.lag(barrier_.contact(), x, barrier_.kappa(), x_start, dt);
+}
+
+void FrictionTerm::add_gradient(const double* x, double weight, double* grad) {
+  ProfileScope scope(profile_, StepPhase::friction);
+  friction_.compute_derivatives(x, weight, false);
+  friction_.add_gradient(grad);
+}
+
+void FrictionTerm::add_derivatives(const double* x, double weight, const DerivativeOutput& out) {
+  if (friction_.num_stencils() == 0) return;
+  ProfileScope scope(profile_, StepPhase::friction);
+  friction_.compute_derivatives(x, weight, true, out.subset ? out.subset->vertex_mask.data() : nullptr);
+  friction_.add_gradient(out.grad);
+}
+
+StencilSlabs FrictionTerm::slabs() const {
+  if (friction_.num_stencils() == 0) return {};
+  return {&friction_.stencils(), &friction_.slab_begin(), friction_.local_hessians().data()};
+}
+
+}  // namespace nexdyn
