@@ -48,116 +48,133 @@ void print_summary(const Scene& scene) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies"};
-  app.require_subcommand(1);
+namespace {
 
-  std::string scene_path, out_dir, integrator;
-  int64_t steps = -1;
+// Everything the command line sets.
+struct CliArgs {
+  std::string scene_path, out_dir, integrator, energy_guard, resume_dir, check_path, ccd_path;
+  int64_t steps = -1, checkpoint_every = -1;
   int threads = 0;
   bool quiet = false;
-  CLI::App* run = app.add_subcommand("run", "Run a scene and write stats.csv and frames");
-  run->add_option("scene", scene_path, "Scene JSON file")->required();
-  run->add_option("--out", out_dir, "Output folder (default out/<scene name>)");
-  run->add_option("--steps", steps, "Number of steps (default: the scene's time.steps)")
-      ->check(CLI::PositiveNumber);
-  run->add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
-  run->add_option("--integrator", integrator, "Override the scene's integrator preset");
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
-  run->add_option("--rho-inf", rho_inf, "Spectral radius at infinity of generalized_alpha (0 to 1)");
-  std::string energy_guard;
-  run->add_option("--energy-guard", energy_guard, "on or off: retake with implicit Euler any step whose "
-                  "integration would create energy (default: the scene's time.energy_guard, on)")
+  CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr;
+};
+
+void define_cli(CLI::App& app, CliArgs& a) {
+  app.require_subcommand(1);
+  a.run = app.add_subcommand("run", "Run a scene and write stats.csv and frames");
+  a.run->add_option("scene", a.scene_path, "Scene JSON file")->required();
+  a.run->add_option("--out", a.out_dir, "Output folder (default out/<scene name>)");
+  a.run->add_option("--steps", a.steps, "Number of steps (default: the scene's time.steps)")
+      ->check(CLI::PositiveNumber);
+  a.run->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  a.run->add_option("--integrator", a.integrator, "Override the scene's integrator preset");
+  a.run->add_option("--rho-inf", a.rho_inf, "Spectral radius at infinity of generalized_alpha (0 to 1)");
+  a.run->add_option("--energy-guard", a.energy_guard, "on or off: retake with implicit Euler any step whose "
+                    "integration would create energy (default: the scene's time.energy_guard, on)")
       ->check(CLI::IsMember({"on", "off"}));
-  run->add_flag("--quiet", quiet, "No progress bar or summary");
-  int64_t checkpoint_every = -1;
-  run->add_option("--checkpoint-every", checkpoint_every,
-                  "Steps between checkpoints (default: the scene's output.checkpoint_every, 100; 0: only "
-                  "on SIGINT/SIGTERM)")
+  a.run->add_flag("--quiet", a.quiet, "No progress bar or summary");
+  a.run->add_option("--checkpoint-every", a.checkpoint_every,
+                    "Steps between checkpoints (default: the scene's output.checkpoint_every, 100; 0: only "
+                    "on SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
-  std::string resume_dir;
-  CLI::App* resume = app.add_subcommand("resume", "Continue a stopped run from its newest valid checkpoint");
-  resume->add_option("dir", resume_dir, "The run's output folder")->required();
-  resume->add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
-  resume->add_flag("--quiet", quiet, "No progress bar or summary");
+  a.resume = app.add_subcommand("resume", "Continue a stopped run from its newest valid checkpoint");
+  a.resume->add_option("dir", a.resume_dir, "The run's output folder")->required();
+  a.resume->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  a.resume->add_flag("--quiet", a.quiet, "No progress bar or summary");
+  a.check = app.add_subcommand("check", "Validate a scene and print its size");
+  a.check->add_option("scene", a.check_path, "Scene JSON file")->required();
+  a.ccd = app.add_subcommand("ccd", "Run the narrow-phase CCD over a query file and print one line");
+  a.ccd->add_option("queries", a.ccd_path, "CCD query file (data/ccd/README.txt)")->required();
+}
 
-  std::string check_path;
-  CLI::App* check = app.add_subcommand("check", "Validate a scene and print its size");
-  check->add_option("scene", check_path, "Scene JSON file")->required();
+int run_ccd(const CliArgs& a) {
+  const CcdQueryStats s = run_ccd_queries(a.ccd_path);
+  std::printf("queries=%lld positives=%lld false_negatives=%lld false_positives=%lld seconds=%.6f "
+              "queries_per_second=%.1f\n",
+              static_cast<long long>(s.queries), static_cast<long long>(s.positives),
+              static_cast<long long>(s.false_negatives), static_cast<long long>(s.false_positives),
+              s.seconds, s.seconds > 0.0 ? double(s.queries) / s.seconds : 0.0);
+  return 0;
+}
 
-  std::string ccd_path;
-  CLI::App* ccd = app.add_subcommand("ccd", "Run the narrow-phase CCD over a query file and print one line");
-  ccd->add_option("queries", ccd_path, "CCD query file (data/ccd/README.txt)")->required();
+int run_check(const CliArgs& a) {
+  Scene scene = load_scene(a.check_path);
+  Simulation validate(scene);  // builds the assembly and checks the initial forces
+  print_summary(scene);
+  std::printf("ok\n");
+  return 0;
+}
 
+// Runs (or resumes) a scene; `out` gets its output folder.
+RunSummary run_or_resume(const CliArgs& a, std::filesystem::path& out) {
+  if (*a.resume) {
+    out = a.resume_dir;
+    if (!a.quiet) std::printf("resuming the run in %s\n", out.string().c_str());
+    RunSummary summary = resume_run(out, !a.quiet && isatty(STDERR_FILENO));
+    if (!a.quiet) std::printf("resumed after step %lld\n", static_cast<long long>(summary.first_step - 1));
+    return summary;
+  }
+  Scene scene = load_scene(a.scene_path);
+  override_integrator(scene, a.integrator, a.rho_inf);
+  if (!a.energy_guard.empty()) scene.time.energy_guard = a.energy_guard == "on";
+  RunOptions options;
+  options.out_dir = a.out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(a.out_dir);
+  options.steps = a.steps;
+  options.progress = !a.quiet && isatty(STDERR_FILENO);
+  options.checkpoint_every = a.checkpoint_every;
+  options.integrator = a.integrator;
+  options.rho_inf = a.rho_inf;
+  options.energy_guard = a.energy_guard;
+  out = options.out_dir;
+  if (!a.quiet) print_summary(scene);
+  return run_scene(scene, options);
+}
+
+// The exit code and the last lines of a run: 0 done, 2 a failed step, 128 + signal interrupted.
+int report(const RunSummary& summary, const std::filesystem::path& out, bool quiet) {
+  const std::string partial = (out / "stats.partial.csv").string();
+  if (!summary.ok) {
+    std::fprintf(stderr, "nexdyn: error: %s (rows of the %lld completed steps are in %s; the last good "
+                 "state is in %s)\n", summary.message.c_str(), static_cast<long long>(summary.steps_done),
+                 partial.c_str(), summary.checkpoint.c_str());
+    return 2;
+  }
+  if (summary.interrupted) {
+    std::fprintf(stderr, "nexdyn: interrupted by %s after step %lld; checkpoint %s; continue with: nexdyn "
+                 "resume %s\n", summary.signal == SIGINT ? "SIGINT" : "SIGTERM",
+                 static_cast<long long>(summary.steps_done), summary.checkpoint.c_str(), out.string().c_str());
+    return 128 + summary.signal;
+  }
+  if (!quiet) {
+    std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(steps_run(summary)),
+                summary.wall_seconds, out.string().c_str());
+    std::printf("%s\n", profile_line(summary).c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies"};
+  CliArgs a;
+  define_cli(app, a);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
-
   try {
     std::unique_ptr<tbb::global_control> thread_limit;
-    if (threads > 0)
+    if (a.threads > 0)
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                           static_cast<size_t>(threads));
-    if (*ccd) {
-      const CcdQueryStats s = run_ccd_queries(ccd_path);
-      std::printf("queries=%lld positives=%lld false_negatives=%lld false_positives=%lld seconds=%.6f "
-                  "queries_per_second=%.1f\n",
-                  static_cast<long long>(s.queries), static_cast<long long>(s.positives),
-                  static_cast<long long>(s.false_negatives), static_cast<long long>(s.false_positives),
-                  s.seconds, s.seconds > 0.0 ? double(s.queries) / s.seconds : 0.0);
-      return 0;
-    }
-    if (*check) {
-      Scene scene = load_scene(check_path);
-      Simulation validate(scene);  // builds the assembly and checks the initial forces
-      print_summary(scene);
-      std::printf("ok\n");
-      return 0;
-    }
-    RunSummary summary;
+                                                           static_cast<size_t>(a.threads));
+    if (*a.ccd) return run_ccd(a);
+    if (*a.check) return run_check(a);
     std::filesystem::path out;
-    if (*resume) {
-      out = resume_dir;
-      if (!quiet) std::printf("resuming the run in %s\n", out.string().c_str());
-      summary = resume_run(out, !quiet && isatty(STDERR_FILENO));
-      if (!quiet) std::printf("resumed after step %lld\n", static_cast<long long>(summary.first_step - 1));
-    } else {
-      Scene scene = load_scene(scene_path);
-      override_integrator(scene, integrator, rho_inf);
-      if (!energy_guard.empty()) scene.time.energy_guard = energy_guard == "on";
-      RunOptions options;
-      options.out_dir = out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(out_dir);
-      options.steps = steps;
-      options.progress = !quiet && isatty(STDERR_FILENO);
-      options.checkpoint_every = checkpoint_every;
-      options.integrator = integrator;
-      options.rho_inf = rho_inf;
-      options.energy_guard = energy_guard;
-      out = options.out_dir;
-      if (!quiet) print_summary(scene);
-      summary = run_scene(scene, options);
-    }
-    const std::string partial = (out / "stats.partial.csv").string();
-    if (!summary.ok) {
-      std::fprintf(stderr, "nexdyn: error: %s (rows of the %lld completed steps are in %s; the last good "
-                   "state is in %s)\n", summary.message.c_str(), static_cast<long long>(summary.steps_done),
-                   partial.c_str(), summary.checkpoint.c_str());
-      return 2;
-    }
-    if (summary.interrupted) {
-      std::fprintf(stderr, "nexdyn: interrupted by %s after step %lld; checkpoint %s; continue with: nexdyn "
-                   "resume %s\n", summary.signal == SIGINT ? "SIGINT" : "SIGTERM",
-                   static_cast<long long>(summary.steps_done), summary.checkpoint.c_str(), out.string().c_str());
-      return 128 + summary.signal;
-    }
-    if (!quiet) {
-      std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(steps_run(summary)),
-                  summary.wall_seconds, out.string().c_str());
-      std::printf("%s\n", profile_line(summary).c_str());
-    }
-    return 0;
+    const RunSummary summary = run_or_resume(a, out);
+    return report(summary, out, a.quiet);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nexdyn: error: %s\n", e.what());
     return 1;

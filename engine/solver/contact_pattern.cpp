@@ -107,6 +107,15 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
   const int64_t num = static_cast<int64_t>(stencils.size() / 4);
   if (slab_begin[num] > int64_t{UINT32_MAX})
     throw std::length_error("over 4.29 G contact Hessian values in one Newton system: not supported");
+  layout_blocks(stencils, slab_begin);
+  const bool changed = fit_pairs(stencils, allow_shrink);
+  if (changed) locate_blocks(stencils);
+  build_gather_table(stencils, slab_begin);
+  return changed;
+}
+
+void ContactPattern::layout_blocks(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin) {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
   stencil_size_.resize(num);
   block_begin_.resize(num + 1);
   block_begin_[0] = 0;
@@ -118,7 +127,10 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
   }
   block_value_.resize(block_begin_[num]);
   locate_blocks(stencils);
+}
 
+bool ContactPattern::fit_pairs(const std::vector<int32_t>& stencils, bool allow_shrink) {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
   // Calls f(i, j, k) for every upper-triangle 3x3 block of every stencil: its vertices i <= j
   // (i = -1 when one is absent or held) and its index k into block_value_.
   auto for_each_block = [&](auto&& f) {
@@ -168,8 +180,12 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
       changed = true;
     }
   }
-  if (changed) locate_blocks(stencils);
+  return changed;
+}
 
+void ContactPattern::build_gather_table(const std::vector<int32_t>& stencils,
+                                        const std::vector<int64_t>& slab_begin) {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
   // Gather table: a stable counting sort of the blocks by vertex column. Counting at J + 2 and
   // filling through J + 1 leaves entry_ptr_[J] at column J's first entry.
   const int64_t nv = merged_.num_dofs / 3;
@@ -196,7 +212,6 @@ bool ContactPattern::update(const std::vector<int32_t>& stencils, const std::vec
         entries_[entry_ptr_[v[col] + 1]++] = entry;
       }
   }
-  return changed;
 }
 
 void ContactPattern::assemble(const double* elastic_values, const std::vector<const double*>& pieces,

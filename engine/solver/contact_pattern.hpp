@@ -63,6 +63,11 @@ class ContactPattern {
 
  private:
   void rebuild(std::vector<std::pair<int32_t, int32_t>> pairs);
+  // The steps of update(): each stencil's size and blocks; the pattern grown to every block (or
+  // shrunk to fit, with allow_shrink), true when rebuilt; the gather table of the blocks.
+  void layout_blocks(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin);
+  bool fit_pairs(const std::vector<int32_t>& stencils, bool allow_shrink);
+  void build_gather_table(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin);
   // Value index of the first row of block (vertex row I, DOF column c) in the merged pattern,
   // or -1 when the block is absent.
   int64_t block_value(int32_t i, int64_t column) const;
