@@ -203,6 +203,13 @@ std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils
   return lists;
 }
 
+const std::vector<const std::vector<int32_t>*>& IncrementalPotential::take_changed_stencils() {
+  changed_.clear();
+  for (const auto& term : terms_)
+    if (const std::vector<int32_t>* stencils = term->take_changed_stencils()) changed_.push_back(stencils);
+  return changed_;
+}
+
 const std::vector<const std::vector<int32_t>*>& IncrementalPotential::end_iteration(const double* x) {
   changed_.clear();
   for (const auto& term : terms_)

@@ -110,6 +110,10 @@ class IncrementalPotential {
   // the elastic pattern: the barrier's active set and the lagged friction contacts.
   std::vector<const std::vector<int32_t>*> coupling_stencils() const;
 
+  // The stencil lists whose part of E changed outside Newton since the last call (a new friction
+  // lag): the coming solve thaws their islands. Clears the terms' reports.
+  const std::vector<const std::vector<int32_t>*>& take_changed_stencils();
+
   // At Newton's accepted point x: the stencil lists whose energy changed there (an adaptive
   // stiffness raised; empty: E did not change).
   const std::vector<const std::vector<int32_t>*>& end_iteration(const double* x);
@@ -156,7 +160,8 @@ class IncrementalPotential {
   std::vector<int64_t> piece_begin_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
   std::vector<double> group_term_;      // (num_groups) workspace of group_energy
-  std::vector<const std::vector<int32_t>*> changed_;  // end_iteration's answer
+  // The answer of end_iteration or take_changed_stencils (each read at once by Newton).
+  std::vector<const std::vector<int32_t>*> changed_;
   // (3n) outputs and workspaces of impulsive_forces
   std::vector<double> contact_force_, friction_force_, joint_force_, contact_gradient_, friction_gradient_,
       joint_gradient_;

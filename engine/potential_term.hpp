@@ -98,6 +98,11 @@ class PotentialTerm {
   // Largest fraction of the step p from x that the term allows (1: any).
   virtual double max_step(const double* /*x*/, const double* /*p*/) { return 1.0; }
 
+  // Stencils (num x 4) whose part of E changed outside Newton since the last solve began (a new
+  // friction lag: its old and new contacts), or null; the next solve thaws their islands. The
+  // call clears the report; the list stays valid until the term changes again.
+  virtual const std::vector<int32_t>* take_changed_stencils() { return nullptr; }
+
   // At Newton's accepted point: returns the stencils whose energy changed (an adaptive stiffness
   // raised), or null when nothing changed.
   virtual const std::vector<int32_t>* end_iteration(const double* /*x*/) { return nullptr; }

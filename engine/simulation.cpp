@@ -324,10 +324,8 @@ NewtonResult Simulation::solve_with_friction(const StepContext& ctx, int& iterat
   for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
     const double before = friction_->total_normal_force();
     // Only the bodies with friction contacts, before or after the new lag, see a new potential:
-    // the rest stay converged.
-    newton_->thaw(friction_->stencils());
+    // the friction term reports them and the next solve thaws them; the rest stay converged.
     lag_friction(ctx, x_next_);
-    newton_->thaw(friction_->stencils());
     const double after = friction_->total_normal_force();
     if (scene_.contact.friction_iterations < 0 &&
         std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))

@@ -424,6 +424,8 @@ bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
   forget_unused_systems();
+  // Islands whose potential changed since the last solve (a new friction lag) start unfrozen.
+  for (const std::vector<int32_t>* stencils : potential_.take_changed_stencils()) thaw(*stencils);
   potential_.begin_solve(x.data());
   if (!std::isfinite(potential_.energy(x.data()))) {
     result.status = StepStatus::non_finite;

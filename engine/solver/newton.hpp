@@ -83,7 +83,8 @@ class NewtonSolver {
 
   // Re-solving after a change that touches only some vertices (a new friction lag): the next
   // solve keeps every island that converged in the last one frozen, except those thawed here
-  // (the islands holding a vertex of these stencils, num x 4 vertex ids, -1 = none).
+  // (the islands holding a vertex of these stencils, num x 4 vertex ids, -1 = none) and those
+  // the potential's terms report changed (IncrementalPotential::take_changed_stencils).
   void thaw(const std::vector<int32_t>& stencils);
   void keep_converged_next_solve() { keep_converged_ = true; }
 

@@ -3,9 +3,20 @@
 namespace nexdyn {
 
 void FrictionTerm::lag(const double* x, const double* x_start, double dt) {
+  // Only the bodies with friction contacts, before or after the new lag, see a new potential.
+  if (!changed_pending_) changed_.clear();
+  changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
   barrier_.build_active_set_at(x);
   ProfileScope scope(profile_, StepPhase::friction);
   friction_.lag(barrier_.contact(), x, barrier_.kappa(), x_start, dt);
+  changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
+  changed_pending_ = true;
+}
+
+const std::vector<int32_t>* FrictionTerm::take_changed_stencils() {
+  if (!changed_pending_) return nullptr;
+  changed_pending_ = false;
+  return &changed_;
 }
 
 void FrictionTerm::add_gradient(const double* x, double weight, double* grad) {

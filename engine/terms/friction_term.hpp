@@ -34,11 +34,14 @@ class FrictionTerm final : public PotentialTerm {
     return friction_.num_stencils() > 0 ? &friction_.stencils() : nullptr;
   }
   FrictionPotential& friction() { return friction_; }
+  const std::vector<int32_t>* take_changed_stencils() override;
 
  private:
   FrictionPotential& friction_;
   BarrierTerm& barrier_;
   StepProfile* profile_ = nullptr;
+  std::vector<int32_t> changed_;  // the stencils before and after the last lag(s)
+  bool changed_pending_ = false;  // changed_ not yet taken
 };
 
 }  // namespace nexdyn

@@ -20,6 +20,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -333,6 +334,11 @@ TEST_CASE("cached pair distances stay exact through masked sweeps that move one 
       const double s = (point(pr.first) - plane.point).dot(plane.normal);
       min_ref = std::min(min_ref, s > 0.0 ? s * s : 0.0);
     }
-    CHECK(contact.min_squared_distance(x.data()) == test::relative(min_ref, 1e-12));
+    // The reference computes the same formulas in other compiled copies, which the compiler may
+    // fuse differently. The moves drive pairs to 1e-7 m and below, where a signed distance taken
+    // from coordinates of about 0.5 m carries an absolute rounding of a few eps, so d = s^2 one of
+    // 2 |s| times that (the AddressSanitizer build differed beyond 1e-12 relative at d = 2e-14).
+    const double rounding = 16.0 * std::numeric_limits<double>::epsilon() * std::sqrt(min_ref);
+    CHECK(std::abs(contact.min_squared_distance(x.data()) - min_ref) <= 1e-12 * min_ref + rounding);
   }
 }
