@@ -42,9 +42,10 @@ inline constexpr const char* kStatsHeader =
 // The energy balance of each step (engine/energy_balance.hpp), the last columns: the change of
 // total_energy from the row before (or from the start) is
 // boundary_work - friction_dissipated + kappa_energy + integrator_energy; then guarded_steps,
-// the (sub)steps the energy guard retook with implicit Euler.
+// the (sub)steps the energy guard retook with implicit Euler, and sleeping_bodies, the bodies
+// asleep at the end of the step (engine/sleeping.hpp).
 inline constexpr const char* kBalanceColumns =
-    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps";
+    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps,sleeping_bodies";
 
 // timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
 // the rest of the step, of writing its stats row and frames, and the total, in milliseconds.

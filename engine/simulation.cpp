@@ -40,6 +40,11 @@ constexpr int kMaxKinematicAttempts = 8;
 constexpr int kMaxFrictionLags = 20;
 constexpr double kFrictionLagTolerance = 1e-3;
 
+// Sleeping bodies: the default rest speed against the Newton tolerance. A converged step leaves
+// every increment below tolerance * dt uncorrected, so bodies at rest keep velocities of a few
+// times the tolerance (up to 7x on scenes/stress/pile_100.json).
+constexpr double kSleepToleranceRatio = 10.0;
+
 std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
   if (!scene.contact.enabled) return nullptr;
   return std::make_unique<BarrierPotential>(scene.model, resolved_dhat(scene));
@@ -66,6 +71,12 @@ Simulation::Simulation(const Scene& scene)
   // The potential's terms, in order (engine/incremental_potential.hpp): inertia and gravity,
   // elasticity, joints and the barrier (the constructor), then friction and the kinematic targets.
   potential_.set_friction(friction_.get());
+  if (friction_) potential_.friction()->set_velocity_tolerance(scene.solver.tolerance);
+  if (contact_ && scene.solver.sleep.enabled) {
+    const SleepSettings& sleep = scene.solver.sleep;
+    sleeping_ = std::make_unique<SleepingBodies>(model_, history_, sleep.velocity > 0.0 ? sleep.velocity : kSleepToleranceRatio * scene.solver.tolerance,
+                                                 sleep.steps, contact_->dhat());
+  }
   if (!kinematic_.empty()) potential_.set_kinematic(&kinematic_);
   potential_.set_profile(&profile_);
   if (contact_) contact_->set_profile(&profile_);
@@ -109,6 +120,7 @@ StepOutcome Simulation::step() {
   balance_ = {};
   stats_.guarded_steps = 0;
   energy_now_ = history_.energy_before;
+  if (sleeping_) sleeping_->wake_near_motion(state_, scene_.time.dt);
   StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
   stats_.retries = retries;
   if (outcome.status != StepStatus::ok) return outcome;
@@ -121,6 +133,11 @@ StepOutcome Simulation::step() {
   {
     ProfileScope scope(&profile_, StepPhase::measure);
     measure_step(stats_);
+    // Rest counts and sleeping groups, from the contact candidates the measure left at x.
+    if (sleeping_) {
+      sleeping_->update(state_, contact_->candidates(), scene_.time.dt);
+      stats_.sleeping_bodies = sleeping_->num_sleeping();
+    }
     // What the named terms do not explain is the time integration's own doing.
     balance_.integrator_energy = (stats_.total_energy - history_.energy_before) - balance_.boundary_work +
                                  balance_.friction_dissipated - balance_.kappa_energy;
@@ -242,6 +259,7 @@ void Simulation::prepare_terms(const StepContext& ctx) {
     newton_ = std::make_unique<NewtonSolver>(model_, potential_);
     newton_->set_profile(&profile_);
   }
+  hold_sleeping();
   potential_.begin_step(state_.x_tilde, ctx);
   // The start-of-step contact force's part of the step: x_tilde += (alpha - r) h^2 M^-1 f_n.
   const std::vector<double>& memory = history_.contact_memory;
@@ -323,12 +341,16 @@ NewtonResult Simulation::solve_with_friction(const StepContext& ctx, int& iterat
   const int lags = scene_.contact.friction_iterations < 0 ? kMaxFrictionLags : scene_.contact.friction_iterations;
   for (int lag = 1; friction_ && result.status == StepStatus::ok && lag < lags; ++lag) {
     const double before = friction_->total_normal_force();
-    // Only the bodies with friction contacts, before or after the new lag, see a new potential:
-    // the friction term reports them and the next solve thaws them; the rest stay converged.
+    // Only the bodies at contacts whose friction the new lag changed by more than the Newton
+    // tolerance resolves see a new potential: the friction term reports them and the next solve
+    // thaws them; the rest stay converged.
     lag_friction(ctx, x_next_);
     const double after = friction_->total_normal_force();
+    // Converged lagging stops when the forces settle in sum, or when no contact's friction
+    // changed by more than a re-solve could resolve at the Newton tolerance.
     if (scene_.contact.friction_iterations < 0 &&
-        std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before))
+        (std::abs(after - before) <= kFrictionLagTolerance * std::max(after, before) ||
+         potential_.friction()->last_lag_changes() == 0))
       break;
     newton_->keep_converged_next_solve();
     result = solve_kinematic(ctx, iterations);
@@ -435,11 +457,16 @@ void Simulation::update_with_contact(const StepContext& ctx) {
   // Kept when the scene's scheme uses it (also after a first step taken by implicit Euler).
   std::vector<double>& memory = history_.contact_memory;
   const bool remember = scene_.time.integrator.contact_memory_scale(dt) != 0.0;
-  if (remember) memory.assign(model_.num_dofs(), 0.0);
+  if (remember) memory.resize(model_.num_dofs(), 0.0);
   std::vector<double>& x_tilde = state_.x_tilde;
   std::vector<double>&v = state_.v, &a = state_.a, &a_bar = state_.a_bar;
   for (int32_t vertex = 0; vertex < model_.num_vertices; ++vertex) {
-    if (model_.dirichlet[vertex] >= 0) continue;
+    if (model_.dirichlet[vertex] >= 0) {
+      if (remember) std::fill_n(memory.begin() + 3 * int64_t{vertex}, 3, 0.0);
+      continue;
+    }
+    // A sleeping body keeps its state (v = 0) and its contact memory for when it wakes.
+    if (sleeping_ && sleeping_->vertex_asleep(vertex)) continue;
     const double m = model_.mass[vertex];
     for (int d = 0; d < 3; ++d) {
       const int64_t i = 3 * int64_t{vertex} + d;
@@ -466,6 +493,16 @@ void Simulation::finish(const StepContext& ctx, double held_kinetic_before) {
 void Simulation::drop_caches() {
   newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
   kinematic_on_target_ = false;
+  held_asleep_.clear();
+}
+
+void Simulation::hold_sleeping() {
+  if (!sleeping_) return;
+  std::vector<int32_t> asleep = sleeping_->sleeping_vertices();
+  if (asleep == held_asleep_) return;
+  newton_->hold(held_asleep_, false);
+  newton_->hold(asleep, true);
+  held_asleep_.swap(asleep);
 }
 
 // ---- helpers of the stages ----------------------------------------------------------------
@@ -541,8 +578,11 @@ void Simulation::save(CheckpointWriter& out) const { write_step_checkpoint(out, 
 
 void Simulation::restore(CheckpointReader& in) {
   const StepCheckpointShape shape{model_.num_dofs(), model_.num_vertices, joints_.size(),
-                                  static_cast<int64_t>(kinematic_.vertices().size()), contact_ != nullptr};
+                                  static_cast<int64_t>(kinematic_.vertices().size()), contact_ != nullptr,
+                                  static_cast<int32_t>(model_.bodies.size())};
   read_step_checkpoint(in, shape, state_, history_);
+  if (sleeping_) sleeping_->adopt(state_);
+  else history_.rest_steps.clear(), history_.sleep_group.clear(), history_.rest_anchor.clear();
   drop_caches();
 }
 

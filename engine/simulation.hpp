@@ -29,6 +29,7 @@
 #include "engine/incremental_potential.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/scene/scene.hpp"
+#include "engine/sleeping.hpp"
 #include "engine/solver/newton.hpp"
 #include "engine/solver/step_status.hpp"
 #include "engine/state.hpp"
@@ -68,6 +69,7 @@ struct StepStats {
   int retries = 0;  // failed attempts of this step, each retried as two of half the dt
   EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
   int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
+  int32_t sleeping_bodies = 0;  // bodies asleep at the end of the step (engine/sleeping.hpp)
 };
 
 struct StepOutcome {
@@ -136,6 +138,8 @@ class Simulation {
   void finish(const StepContext& ctx, double held_kinetic_before);
   // Throws away what was built from the rolled-back state: Newton's islands and held vertices.
   void drop_caches();
+  // Holds the sleeping bodies' vertices in Newton (and lets the woken ones go).
+  void hold_sleeping();
 
   // Held vertices at their prescribed positions (and velocities, accelerations) at time t;
   // kinematic ones too unless `kinematic` is false.
@@ -184,6 +188,8 @@ class Simulation {
   std::unique_ptr<BarrierPotential> contact_;  // null without contact
   std::unique_ptr<FrictionPotential> friction_;  // null without friction
   KinematicTargets kinematic_;
+  std::unique_ptr<SleepingBodies> sleeping_;  // null without contact or with sleeping off
+  std::vector<int32_t> held_asleep_;          // the vertices Newton holds because they sleep
   IncrementalPotential potential_;
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
   double joint_tolerance_ = 0.0;          // [m]

@@ -55,6 +55,12 @@ struct StepHistory {
   uint64_t contact_pattern_stamp = 0;
   static constexpr uint64_t kContactPatternUnbuilt = ~uint64_t{0};
 
+  // Sleeping bodies (engine/sleeping.hpp), empty when sleeping is off: per body the steps it has
+  // been at rest and its sleeping group (-1: awake), and (3n) where each vertex's rest began [m].
+  std::vector<int32_t> rest_steps;
+  std::vector<int32_t> sleep_group;
+  std::vector<double> rest_anchor;
+
   // The energy accounting (engine/simulation.cpp): the total energy where the next step's
   // balance starts [J], and the energy guard's record: the energy the integration has created
   // so far (negative: taken out) [J] and the largest energy in motion seen [J].

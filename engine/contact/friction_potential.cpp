@@ -67,6 +67,11 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
                             const double* x_start, double dt) {
   x_start_ = x_start;
   eps_u_ = epsv_ * dt;
+  previous_.basis.swap(basis_);
+  previous_.mu.swap(mu_);
+  previous_.normal_force.swap(normal_force_);
+  previous_.stencils.swap(stencils_);
+  previous_.keys.swap(keys_);
   const int64_t num = barrier.num_stencils();
   const double dhat2 = barrier.dhat() * barrier.dhat();
   const std::vector<StencilKind>& kinds = barrier.kinds();
@@ -77,12 +82,15 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
   normal_force_.resize(num);
   vertices_.assign(4 * num, -1);
   stencils_.assign(4 * num, -1);
+  keys_.resize(5 * num);
   slab_begin_.resize(num + 1);
   slab_begin_[0] = 0;
   parallel_for(num, [&](int64_t begin, int64_t end) {
     for (int64_t k = begin; k < end; ++k) {
       const int32_t* v = &real[4 * k];
       const int n = BarrierPotential::stencil_size(kinds[k]);
+      keys_[5 * k] = static_cast<int32_t>(kinds[k]);
+      std::copy_n(v, 4, &keys_[5 * k + 1]);
       Eigen::Vector3d X[4];
       for (int i = 0; i < n && kinds[k] != StencilKind::vertex_plane; ++i) X[i] = point(x, v[i]);
       double d = 0.0, scale = multiplicity[k];
@@ -138,6 +146,52 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
     slab_begin_[k + 1] += slab_begin_[k];
     total_normal_force_ += normal_force_[k];
   }
+}
+
+int64_t FrictionPotential::append_changed_stencils(double dt, double velocity_tolerance,
+                                                   std::vector<int32_t>& out) const {
+  // The previous lag's contacts by key, to find each new contact's old self.
+  const int64_t num = num_stencils(), num_old = static_cast<int64_t>(previous_.basis.size());
+  auto key = [](const std::vector<int32_t>& keys, int64_t k) { return &keys[5 * k]; };
+  auto less = [](const int32_t* a, const int32_t* b) { return std::lexicographical_compare(a, a + 5, b, b + 5); };
+  std::vector<int64_t> old_order(num_old);
+  for (int64_t k = 0; k < num_old; ++k) old_order[k] = k;
+  std::sort(old_order.begin(), old_order.end(), [&](int64_t a, int64_t b) {
+    return less(key(previous_.keys, a), key(previous_.keys, b));
+  });
+  std::vector<uint8_t> old_matched(num_old, 0);
+  // The smallest velocity change the contact's force change can make on its lightest vertex.
+  auto exceeds = [&](const int32_t* stencil, double force_change) {
+    double m = INFINITY;
+    for (int i = 0; i < 4; ++i)
+      if (stencil[i] >= 0 && model_.mass[stencil[i]] > 0.0) m = std::min(m, model_.mass[stencil[i]]);
+    return std::isfinite(m) && dt * force_change > velocity_tolerance * m;
+  };
+  auto projector = [](const FrictionBasis& b, int i) -> Eigen::Matrix3d { return b.w[i] * b.P * b.P.transpose(); };
+  const int64_t before = static_cast<int64_t>(out.size());
+  for (int64_t k = 0; k < num; ++k) {
+    const int32_t* stencil = &stencils_[4 * k];
+    const double mu = std::max(mu_[k].mu_s, mu_[k].mu_k);
+    auto it = std::lower_bound(old_order.begin(), old_order.end(), key(keys_, k), [&](int64_t o, const int32_t* kk) {
+      return less(key(previous_.keys, o), kk);
+    });
+    double change = mu * normal_force_[k];  // a new contact
+    if (it != old_order.end() && std::equal(key(keys_, k), key(keys_, k) + 5, key(previous_.keys, *it))) {
+      const int64_t o = *it;
+      old_matched[o] = 1;
+      double turn = 0.0;
+      for (int i = 0; i < basis_[k].num_points; ++i)
+        turn = std::max(turn, (projector(basis_[k], i) - projector(previous_.basis[o], i)).cwiseAbs().maxCoeff());
+      change = mu * (std::abs(normal_force_[k] - previous_.normal_force[o]) + normal_force_[k] * turn);
+    }
+    if (exceeds(stencil, change)) out.insert(out.end(), stencil, stencil + 4);
+  }
+  for (int64_t o = 0; o < num_old; ++o) {  // contacts that are gone
+    const int32_t* stencil = &previous_.stencils[4 * o];
+    const double mu = std::max(previous_.mu[o].mu_s, previous_.mu[o].mu_k);
+    if (!old_matched[o] && exceeds(stencil, mu * previous_.normal_force[o])) out.insert(out.end(), stencil, stencil + 4);
+  }
+  return (static_cast<int64_t>(out.size()) - before) / 4;
 }
 
 Vector12d FrictionPotential::displacement(const double* x, int64_t k) const {

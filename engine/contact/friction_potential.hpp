@@ -56,6 +56,12 @@ class FrictionPotential {
            double dt);
   // No friction stencils (no contact at the lagged positions, or before the first lag).
   void clear();
+  // Appends to `out` (4 ids per stencil, as stencils()) the contacts whose friction force the
+  // last lag() changed by more than a re-solve could resolve: those where dt * |change| / m
+  // exceeds velocity_tolerance [m/s], m the lightest free vertex of the stencil. The change is
+  // bounded by mu (|lambda_new - lambda_old| + lambda_new max_i |w_i P P^T new - old|), a
+  // contact that appears or disappears by mu lambda. Returns how many it appended.
+  int64_t append_changed_stencils(double dt, double velocity_tolerance, std::vector<int32_t>& out) const;
 
   const FrictionTable& table() const { return table_; }
   int64_t num_stencils() const { return static_cast<int64_t>(basis_.size()); }
@@ -94,6 +100,14 @@ class FrictionPotential {
   std::vector<double> normal_force_;     // (num) lambda, multiplicity included [N]
   std::vector<int32_t> vertices_;        // (num x 4) real vertex ids, -1 past n
   std::vector<int32_t> stencils_;        // (num x 4) as vertices_, held vertices -1
+  std::vector<int32_t> keys_;            // (num x 5) kind and the barrier's stencil vertices
+  // The lag before the last one (append_changed_stencils).
+  struct Lag {
+    std::vector<FrictionBasis> basis;
+    std::vector<FrictionCoefficients> mu;
+    std::vector<double> normal_force;
+    std::vector<int32_t> stencils, keys;
+  } previous_;
   std::vector<int64_t> slab_begin_;      // (num + 1)
   std::vector<double> gradients_;        // (num x 12)
   std::vector<double> hessians_;         // (slab_begin_.back())

@@ -42,6 +42,23 @@ std::vector<std::pair<int32_t, int32_t>> read_pairs(CheckpointReader& in, const 
   return pairs;
 }
 
+// The sleeping bodies' fields: all empty (sleeping off), or one count and one group per body
+// (group -1 or a body id) and a finite anchor per DOF.
+void read_sleep(CheckpointReader& in, const StepCheckpointShape& shape, StepHistory& h) {
+  h.rest_steps = in.get_vector<int32_t>();
+  h.sleep_group = in.get_vector<int32_t>();
+  h.rest_anchor = in.get_vector<double>();
+  if (h.rest_steps.empty() && h.sleep_group.empty() && h.rest_anchor.empty()) return;
+  if (static_cast<int64_t>(h.rest_steps.size()) != shape.num_bodies ||
+      static_cast<int64_t>(h.sleep_group.size()) != shape.num_bodies ||
+      static_cast<int64_t>(h.rest_anchor.size()) != shape.num_dofs)
+    in.fail("sleeping bodies' record of the wrong size");
+  for (size_t b = 0; b < h.rest_steps.size(); ++b)
+    if (h.rest_steps[b] < 0 || h.sleep_group[b] < -1 || h.sleep_group[b] >= shape.num_bodies)
+      in.fail("sleeping bodies' record out of range at body " + std::to_string(b));
+  if (!all_finite(h.rest_anchor)) in.fail("non-finite rest anchor");
+}
+
 }  // namespace
 
 void write_step_checkpoint(CheckpointWriter& out, const State& state, const StepHistory& history) {
@@ -61,6 +78,9 @@ void write_step_checkpoint(CheckpointWriter& out, const State& state, const Step
   out.put(history.kinematic_multiplier_scale);
   out.put(history.kinematic_stiffening);
   write_pairs(out, history.contact_pattern_pairs);
+  out.put_vector(history.rest_steps);
+  out.put_vector(history.sleep_group);
+  out.put_vector(history.rest_anchor);
   out.put(history.energy_before);
   out.put(history.integrator_created);
   out.put(history.energy_scale);
@@ -104,6 +124,7 @@ void read_step_checkpoint(CheckpointReader& in, const StepCheckpointShape& shape
     in.fail("stiffening or multiplier scale out of range");
   h.contact_pattern_pairs = read_pairs(in, shape);
   h.contact_pattern_stamp = StepHistory::kContactPatternUnbuilt;
+  read_sleep(in, shape, h);
   h.energy_before = in.get<double>();
   h.integrator_created = in.get<double>();
   h.energy_scale = in.get<double>();

@@ -18,6 +18,7 @@ struct StepCheckpointShape {
   int64_t num_joints = 0;
   int64_t num_kinematic = 0;  // kinematic vertices
   bool has_contact = false;
+  int32_t num_bodies = 0;
 };
 
 void write_step_checkpoint(CheckpointWriter& out, const State& state, const StepHistory& history);

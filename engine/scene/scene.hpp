@@ -32,12 +32,20 @@ struct TimeSettings {
 
 inline constexpr int kMaxSubstepHalvings = 16;
 
+// Sleeping bodies (engine/sleeping.hpp), "solver": {"sleep": ...}.
+struct SleepSettings {
+  bool enabled = true;    // on by default; only scenes with contact have bodies that can rest
+  double velocity = 0.0;  // [m/s] rest speed; 0 = the Newton tolerance (solver.tolerance)
+  int steps = 10;         // steps at rest before a contact group sleeps
+};
+
 struct SolverSettings {
   double tolerance = 1e-5;  // [m/s] Newton increment divided by dt
   int max_iterations = 100;
   double joint_tolerance = 0.0;  // [m] largest joint violation accepted; 0 = default, 1e-9 of
                                  // the bodies' bounding-box diagonal
   int substep_halvings = 4;  // a failed step is retried as two of half the dt, this deep at most
+  SleepSettings sleep;
 };
 
 struct ContactSettings {

@@ -66,6 +66,19 @@ Material read_material(const std::string& name, const json& j, const Where& w) {
   return m;
 }
 
+// "sleep": true, false, or {"velocity": v, "steps": k} (on, with these thresholds).
+void read_sleep(const json& j, const Where& w, SleepSettings& sleep) {
+  if (j.is_boolean()) {
+    sleep.enabled = j.get<bool>();
+    return;
+  }
+  if (!j.is_object()) w.fail("expected true, false or an object with \"velocity\" and \"steps\"", j);
+  check_keys(j, w, {"velocity", "steps"});
+  sleep.enabled = true;
+  if (j.contains("velocity")) sleep.velocity = positive(j["velocity"], w["velocity"]);
+  if (j.contains("steps")) sleep.steps = bounded_int(j["steps"], w["steps"], 1, 1 << 20);
+}
+
 }  // namespace
 
 void read_time(const json& j, const Where& w, TimeSettings& time) {
@@ -104,7 +117,8 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
 }
 
 void read_solver(const json& j, const Where& w, SolverSettings& solver) {
-  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings"});
+  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings", "sleep"});
+  if (j.contains("sleep")) read_sleep(j["sleep"], w["sleep"], solver.sleep);
   if (j.contains("substep_halvings")) {
     // Bounded before the cast to int: 2^32 must not wrap to 0.
     const int64_t halvings = integer(j["substep_halvings"], w["substep_halvings"], 0);

@@ -3,13 +3,19 @@
 namespace nexdyn {
 
 void FrictionTerm::lag(const double* x, const double* x_start, double dt) {
-  // Only the bodies with friction contacts, before or after the new lag, see a new potential.
+  // Only the bodies whose friction forces the new lag changed see a new potential; without a
+  // velocity tolerance, every body with friction contacts before or after it.
   if (!changed_pending_) changed_.clear();
-  changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
+  if (!(velocity_tolerance_ > 0.0)) changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
   barrier_.build_active_set_at(x);
   ProfileScope scope(profile_, StepPhase::friction);
   friction_.lag(barrier_.contact(), x, barrier_.kappa(), x_start, dt);
-  changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
+  if (velocity_tolerance_ > 0.0) {
+    last_changed_ = friction_.append_changed_stencils(dt, velocity_tolerance_, changed_);
+  } else {
+    changed_.insert(changed_.end(), friction_.stencils().begin(), friction_.stencils().end());
+    last_changed_ = friction_.num_stencils();
+  }
   changed_pending_ = true;
 }
 

@@ -21,6 +21,12 @@ class FrictionTerm final : public PotentialTerm {
   // Lags the friction at x: the barrier's active set at x (with the current kappa, which must be
   // set), x_start the step's start positions, dt the attempt's time step.
   void lag(const double* x, const double* x_start, double dt);
+  // The Newton tolerance [m/s]: a new lag reports (take_changed_stencils) only the contacts whose
+  // friction force it changed by more than a re-solve could resolve at this tolerance
+  // (FrictionPotential::append_changed_stencils). 0: every contact before and after the lag.
+  void set_velocity_tolerance(double tolerance) { velocity_tolerance_ = tolerance; }
+  // How many contacts the last lag() changed (as reported).
+  int64_t last_lag_changes() const { return last_changed_; }
 
   double energy(const double* x) const override { return friction_.energy(x); }
   void add_group_energy(const double* x, const int32_t* group_of_vertex, int32_t /*num_groups*/,
@@ -42,6 +48,8 @@ class FrictionTerm final : public PotentialTerm {
   StepProfile* profile_ = nullptr;
   std::vector<int32_t> changed_;  // the stencils before and after the last lag(s)
   bool changed_pending_ = false;  // changed_ not yet taken
+  double velocity_tolerance_ = 0.0;
+  int64_t last_changed_ = 0;
 };
 
 }  // namespace nexdyn

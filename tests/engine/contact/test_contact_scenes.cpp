@@ -130,9 +130,9 @@ TEST_CASE("scene impact_plate: a ball at 30 m/s on a thin plate keeps every step
   for (const StatsRow& row : rows) {
     CAPTURE(row[kStep]);
     CHECK(row[kTotal] <= start.total_energy + 0.01 * std::abs(start.total_energy));
-    // guarded_steps, the last column: the energy guard never stepped in, so this is also
-    // generalized-alpha with rho_inf 0.5 on its own.
-    CHECK(row.v.back() == 0.0);
+    // guarded_steps, the column before sleeping_bodies: the energy guard never stepped in, so
+    // this is also generalized-alpha with rho_inf 0.5 on its own.
+    CHECK(row.v[row.v.size() - 2] == 0.0);
   }
 }
 

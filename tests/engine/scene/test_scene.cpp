@@ -72,6 +72,10 @@ TEST_CASE("scene errors name the file and the key and the value") {
       {scene_with(R"("time": { "alpha_f": 0.6 })"), {"time.alpha_f", "0.6"}},
       {scene_with(R"("time": { "alpha_f": 0.1, "beta": 0 })"), {"time.beta", "implicit"}},
       {scene_with(R"("time": { "energy_guard": "yes" })"), {"time.energy_guard", "true or false", "yes"}},
+      {scene_with(R"("solver": { "sleep": "yes" })"), {"solver.sleep", "true, false or an object", "yes"}},
+      {scene_with(R"("solver": { "sleep": { "velocity": -1 } })"), {"solver.sleep.velocity", "-1"}},
+      {scene_with(R"("solver": { "sleep": { "steps": 0 } })"), {"solver.sleep.steps", "0"}},
+      {scene_with(R"("solver": { "sleep": { "time": 1 } })"), {"solver.sleep", "time", "unknown key"}},
       {"{ not json", {"bad.json", "JSON"}},
   };
   for (const Case& c : cases) {

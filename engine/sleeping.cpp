@@ -1,0 +1,170 @@
+// Sleeping bodies (see sleeping.hpp).
+#include "engine/sleeping.hpp"
+
+#include "engine/solver/islands.hpp"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+
+namespace nexdyn {
+
+namespace {
+}  // namespace
+
+SleepingBodies::SleepingBodies(const Model& model, StepHistory& history, double velocity, int steps,
+                               double dhat)
+    : model_(model), history_(history), velocity_(velocity), dhat_(dhat), steps_(steps) {
+  const int32_t num_bodies = static_cast<int32_t>(model.bodies.size());
+  kind_.assign(num_bodies, Kind::fixed);
+  for (int32_t b = 0; b < num_bodies; ++b) {
+    const BodyRange& body = model.bodies[b];
+    bool all_held = true, driven = false;
+    for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+      const int32_t id = model.dirichlet[v];
+      all_held = all_held && id >= 0;
+      driven = driven || (id >= 0 && model.dirichlet_motions[id].moves());
+    }
+    kind_[b] = driven ? Kind::driven : all_held ? Kind::fixed : Kind::free;
+  }
+  if (history_.sleep_group.empty()) {
+    history_.rest_steps.assign(num_bodies, 0);
+    history_.sleep_group.assign(num_bodies, -1);
+    history_.rest_anchor = model.rest_positions;
+  }
+}
+
+void SleepingBodies::adopt(const State& state) {
+  if (!history_.sleep_group.empty()) return;
+  history_.rest_steps.assign(kind_.size(), 0);
+  history_.sleep_group.assign(kind_.size(), -1);
+  history_.rest_anchor = state.x;
+}
+
+void SleepingBodies::restart_rest(int32_t body, const State& state) {
+  const BodyRange& r = model_.bodies[body];
+  history_.rest_steps[body] = 0;
+  std::copy_n(state.x.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count},
+              history_.rest_anchor.begin() + 3 * int64_t{r.vertex_begin});
+}
+
+void SleepingBodies::wake(int32_t body, const State& state) {
+  history_.sleep_group[body] = -1;
+  restart_rest(body, state);
+}
+
+void SleepingBodies::wake_near_motion(const State& state, double dt) {
+  std::vector<int32_t>& group = history_.sleep_group;
+  if (std::none_of(group.begin(), group.end(), [](int32_t g) { return g >= 0; })) return;
+  // The pairs that the awake bodies' motion x -> x + dt v brings within dhat: the broad phase
+  // of the moving vertices only, so this costs what the awake bodies cost.
+  std::vector<uint8_t> awake(model_.num_vertices, 0);
+  std::vector<double>& end = end_;
+  end = state.x;
+  bool any_awake = false;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t b = model_.vertex_body[v];
+    if (kind_[b] == Kind::fixed || group[b] >= 0 || model_.eliminated(v)) continue;
+    awake[v] = 1;
+    any_awake = true;
+    for (int d = 0; d < 3; ++d) end[3 * int64_t{v} + d] += dt * state.v[3 * int64_t{v} + d];
+  }
+  if (!any_awake) return;
+  find_contact_candidates(model_, state.x.data(), end.data(), 0.5 * dhat_, reached_, awake.data());
+  std::vector<int32_t> woken;  // sleeping groups a moving vertex comes near
+  auto reach = [&](std::initializer_list<int32_t> vertices) {
+    bool moving = false;
+    for (int32_t v : vertices) moving = moving || awake[v];
+    if (!moving) return;
+    for (int32_t v : vertices)
+      if (const int32_t g = group[model_.vertex_body[v]]; g >= 0) woken.push_back(g);
+  };
+  for (const IndexPair& pr : reached_.vertex_triangle) {
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    reach({pr.first, t[0], t[1], t[2]});
+  }
+  for (const IndexPair& pr : reached_.edge_edge) {
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    reach({ea[0], ea[1], eb[0], eb[1]});
+  }
+  if (woken.empty()) return;
+  std::sort(woken.begin(), woken.end());
+  // A woken body does not move yet (v = 0), so it wakes no one else this step.
+  for (int32_t b = 0; b < static_cast<int32_t>(kind_.size()); ++b)
+    if (group[b] >= 0 && std::binary_search(woken.begin(), woken.end(), group[b])) wake(b, state);
+}
+
+void SleepingBodies::update(State& state, const ContactCandidates& candidates, double dt) {
+  const int32_t num_bodies = static_cast<int32_t>(kind_.size());
+  std::vector<int32_t>& rest = history_.rest_steps;
+  std::vector<int32_t>& group = history_.sleep_group;
+  // Steps at rest of the awake free bodies: every vertex slow, and not drifting away.
+  const double speed2 = velocity_ * velocity_;
+  const double drift = 0.5 * velocity_ * steps_ * dt;
+  std::vector<uint8_t> still(num_bodies, 1);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t b = model_.vertex_body[v];
+    if (kind_[b] != Kind::free || group[b] >= 0 || !still[b]) continue;
+    const Eigen::Vector3d x = Eigen::Vector3d::Map(&state.x[3 * int64_t{v}]);
+    const Eigen::Vector3d anchor = Eigen::Vector3d::Map(&history_.rest_anchor[3 * int64_t{v}]);
+    still[b] = Eigen::Vector3d::Map(&state.v[3 * int64_t{v}]).squaredNorm() < speed2 &&
+               (x - anchor).cwiseAbs().maxCoeff() < drift;
+  }
+  for (int32_t b = 0; b < num_bodies; ++b) {
+    if (kind_[b] != Kind::free || group[b] >= 0) continue;
+    if (still[b]) ++rest[b];
+    else restart_rest(b, state);
+  }
+  // Contact groups over the free and driven bodies.
+  DisjointSets sets;
+  sets.reset(num_bodies);
+  auto link = [&](int32_t u, int32_t w) {
+    const int32_t a = model_.vertex_body[u], b = model_.vertex_body[w];
+    if (a != b && kind_[a] != Kind::fixed && kind_[b] != Kind::fixed) sets.join(a, b);
+  };
+  for (const IndexPair& pr : candidates.vertex_triangle)
+    link(pr.first, model_.surface_triangles[3 * int64_t{pr.second}]);
+  for (const IndexPair& pr : candidates.edge_edge)
+    link(model_.surface_edges[2 * int64_t{pr.first}], model_.surface_edges[2 * int64_t{pr.second}]);
+  for (const Joint& joint : model_.joints)
+    for (int k = 1; k < joint.count; ++k) link(joint.vertex[0], joint.vertex[k]);
+  // A group sleeps when every body in it is ready; otherwise every body in it is awake.
+  std::vector<uint8_t> ready(num_bodies, 1);
+  for (int32_t b = 0; b < num_bodies; ++b)
+    if (kind_[b] != Kind::fixed && !(kind_[b] == Kind::free && (group[b] >= 0 || rest[b] >= steps_)))
+      ready[sets.find(b)] = 0;
+  for (int32_t b = 0; b < num_bodies; ++b) {
+    if (kind_[b] != Kind::free) continue;
+    const int32_t root = sets.find(b);
+    if (!ready[root]) {
+      if (group[b] >= 0) wake(b, state);
+      continue;
+    }
+    if (group[b] < 0) {
+      const BodyRange& r = model_.bodies[b];
+      std::fill_n(state.v.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count}, 0.0);
+    }
+    group[b] = root;
+  }
+}
+
+std::vector<int32_t> SleepingBodies::sleeping_vertices() const {
+  std::vector<int32_t> vertices;
+  for (int32_t b = 0; b < static_cast<int32_t>(kind_.size()); ++b) {
+    if (history_.sleep_group[b] < 0) continue;
+    const BodyRange& r = model_.bodies[b];
+    for (int32_t v = r.vertex_begin; v < r.vertex_begin + r.vertex_count; ++v)
+      if (!model_.eliminated(v)) vertices.push_back(v);
+  }
+  return vertices;
+}
+
+int32_t SleepingBodies::num_sleeping() const {
+  return static_cast<int32_t>(
+      std::count_if(history_.sleep_group.begin(), history_.sleep_group.end(), [](int32_t g) { return g >= 0; }));
+}
+
+}  // namespace nexdyn

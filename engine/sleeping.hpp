@@ -1,0 +1,78 @@
+// Sleeping bodies: a body that has stayed still for a while stops being solved, as Box2D's
+// sleeping islands do, so that a pile at rest costs what its moving bodies cost (issue 19).
+//
+// The unit of sleep is a contact group: the free bodies linked by contact candidates (pairs of
+// surface primitives within dhat of each other) or joints. Static bodies (obstacle meshes, bodies
+// whose every vertex is fixed) and planes link nothing, as the ground links nothing in Box2D.
+//
+//   at rest       after every step, an awake body whose every vertex moves slower than
+//                 `velocity` and has drifted less than half the window's worth of it
+//                 (0.5 * velocity * steps * dt) from where its rest began counts one more step
+//                 at rest; any other body starts its count again from its current position.
+//   falls asleep  a group all of whose bodies have been at rest `steps` steps (or sleep) sleeps
+//                 as one: velocities zero, positions, accelerations and contact memory frozen.
+//   wakes         a sleeping group wakes when (a) after a step it is linked to a body that is
+//                 not ready to sleep (a body landed on it, or one of its supports moved), or
+//                 (b) before a step, an awake body's motion at its velocity (x to x + dt v)
+//                 brings one of its surface primitives within dhat of one of the group's (the
+//                 contact broad phase over the awake vertices). A body with a moving prescribed
+//                 vertex never sleeps and keeps its group awake.
+//
+// A sleeping body's vertices are held where they are (NewtonSolver::hold), so they enter the
+// step as fixed obstacles: CCD and the barrier still see them, and no step can end intersecting
+// one. A body that hits a sleeping one where (b) did not foresee it (pushed off its path, or
+// starting to fall from rest) meets it as a fixed obstacle for that one step, and wakes it for
+// the next.
+//
+// The state (per body: steps at rest, sleeping group; per vertex: where the rest began) lives in
+// StepHistory, so rollbacks and checkpoints carry it.
+#pragma once
+
+#include "engine/contact/candidates.hpp"
+#include "engine/model.hpp"
+#include "engine/state.hpp"
+#include "engine/step_history.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+class SleepingBodies {
+ public:
+  // velocity > 0 [m/s]; dhat [m], the contact distance. Sizes the history's sleep fields when
+  // they are empty (a fresh run).
+  SleepingBodies(const Model& model, StepHistory& history, double velocity, int steps, double dhat);
+
+  // After a restore: a history without sleep fields (written with sleeping off) starts with
+  // every body awake and its rest beginning at state.x.
+  void adopt(const State& state);
+
+  // Before a step of length dt: wakes the sleeping groups an awake body's motion may reach.
+  void wake_near_motion(const State& state, double dt);
+  // After a step (with candidates: the contact candidates at state.x, within dhat): counts the
+  // steps at rest, then puts ready groups to sleep (their v = 0) and wakes the others.
+  void update(State& state, const ContactCandidates& candidates, double dt);
+
+  // Vertices of the sleeping bodies, ascending.
+  std::vector<int32_t> sleeping_vertices() const;
+  // (num_vertices) 1 where the vertex's body sleeps.
+  bool vertex_asleep(int32_t v) const { return history_.sleep_group[model_.vertex_body[v]] >= 0; }
+  int32_t num_sleeping() const;
+
+ private:
+  enum class Kind : uint8_t { free, driven, fixed };  // may sleep; never sleeps; links nothing
+  void wake(int32_t body, const State& state);
+  void restart_rest(int32_t body, const State& state);
+
+  const Model& model_;
+  StepHistory& history_;
+  double velocity_ = 0.0, dhat_ = 0.0;
+  int steps_ = 0;
+  std::vector<Kind> kind_;  // (bodies)
+  // wake_near_motion's workspaces: the end of the awake bodies' motion (3n), the pairs it reaches.
+  std::vector<double> end_;
+  ContactCandidates reached_;
+};
+
+}  // namespace nexdyn
