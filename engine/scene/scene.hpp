@@ -35,7 +35,7 @@ inline constexpr int kMaxSubstepHalvings = 16;
 // Sleeping bodies (engine/sleeping.hpp), "solver": {"sleep": ...}.
 struct SleepSettings {
   bool enabled = true;    // on by default; only scenes with contact have bodies that can rest
-  double velocity = 0.0;  // [m/s] rest speed; 0 = the Newton tolerance (solver.tolerance)
+  double velocity = 0.0;  // [m/s] rest speed; 0 = 10x the Newton tolerance (solver.tolerance)
   int steps = 10;         // steps at rest before a contact group sleeps
 };
 
