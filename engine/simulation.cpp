@@ -245,6 +245,12 @@ StepOutcome Simulation::explicit_update(const StepContext& ctx) {
 }
 
 StepOutcome Simulation::implicit_solve(const StepContext& ctx, int& iterations) {
+  // Every body asleep and none driven: nothing can move, and the step is x_{n+1} = x_n with
+  // every velocity, acceleration and contact force as it was (engine/sleeping.hpp).
+  if (sleeping_ && sleeping_->all_asleep()) {
+    x_next_ = state_.x;
+    return {};
+  }
   prepare_terms(ctx);
   const StepOutcome outcome = start_point(ctx);
   if (outcome.status != StepStatus::ok) return outcome;

@@ -115,8 +115,17 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
   }
   for (int32_t b = 0; b < num_bodies; ++b) {
     if (kind_[b] != Kind::free || group[b] >= 0) continue;
-    if (still[b]) ++rest[b];
-    else restart_rest(b, state);
+    if (!still[b]) {
+      restart_rest(b, state);
+      continue;
+    }
+    // The drift is measured over windows of `steps` steps: a body resting for long while its
+    // group waits for another one is not failed by the sum of its windows' jitter.
+    if (++rest[b] % steps_ == 0) {
+      const BodyRange& r = model_.bodies[b];
+      std::copy_n(state.x.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count},
+                  history_.rest_anchor.begin() + 3 * int64_t{r.vertex_begin});
+    }
   }
   // Contact groups over the free and driven bodies.
   DisjointSets sets;
@@ -160,6 +169,12 @@ std::vector<int32_t> SleepingBodies::sleeping_vertices() const {
       if (!model_.eliminated(v)) vertices.push_back(v);
   }
   return vertices;
+}
+
+bool SleepingBodies::all_asleep() const {
+  for (size_t b = 0; b < kind_.size(); ++b)
+    if (kind_[b] == Kind::driven || (kind_[b] == Kind::free && history_.sleep_group[b] < 0)) return false;
+  return true;
 }
 
 int32_t SleepingBodies::num_sleeping() const {

@@ -7,8 +7,9 @@
 //
 //   at rest       after every step, an awake body whose every vertex moves slower than
 //                 `velocity` and has drifted less than half the window's worth of it
-//                 (0.5 * velocity * steps * dt) from where its rest began counts one more step
-//                 at rest; any other body starts its count again from its current position.
+//                 (0.5 * velocity * steps * dt) from where it was at the start of its current
+//                 window of `steps` rest steps counts one more step at rest; any other body
+//                 starts its count again from its current position.
 //   falls asleep  a group all of whose bodies have been at rest `steps` steps (or sleep) sleeps
 //                 as one: velocities zero, positions, accelerations and contact memory frozen.
 //   wakes         a sleeping group wakes when (a) after a step it is linked to a body that is
@@ -59,6 +60,8 @@ class SleepingBodies {
   // (num_vertices) 1 where the vertex's body sleeps.
   bool vertex_asleep(int32_t v) const { return history_.sleep_group[model_.vertex_body[v]] >= 0; }
   int32_t num_sleeping() const;
+  // Every body that could move sleeps (no awake free body, no driven one).
+  bool all_asleep() const;
 
  private:
   enum class Kind : uint8_t { free, driven, fixed };  // may sleep; never sleeps; links nothing
