@@ -74,8 +74,8 @@ Simulation::Simulation(const Scene& scene)
   if (friction_) potential_.friction()->set_velocity_tolerance(scene.solver.tolerance);
   if (contact_ && scene.solver.sleep.enabled) {
     const SleepSettings& sleep = scene.solver.sleep;
-    sleeping_ = std::make_unique<SleepingBodies>(model_, history_, sleep.velocity > 0.0 ? sleep.velocity : kSleepToleranceRatio * scene.solver.tolerance,
-                                                 sleep.steps, contact_->dhat());
+    const double rest_speed = sleep.velocity > 0.0 ? sleep.velocity : kSleepToleranceRatio * scene.solver.tolerance;
+    sleeping_ = std::make_unique<SleepingBodies>(model_, history_, rest_speed, sleep.steps, contact_->dhat());
   }
   if (!kinematic_.empty()) potential_.set_kinematic(&kinematic_);
   potential_.set_profile(&profile_);

@@ -11,9 +11,6 @@
 
 namespace nexdyn {
 
-namespace {
-}  // namespace
-
 SleepingBodies::SleepingBodies(const Model& model, StepHistory& history, double velocity, int steps,
                                double dhat)
     : model_(model), history_(history), velocity_(velocity), dhat_(dhat), steps_(steps) {
@@ -43,11 +40,15 @@ void SleepingBodies::adopt(const State& state) {
   history_.rest_anchor = state.x;
 }
 
-void SleepingBodies::restart_rest(int32_t body, const State& state) {
+void SleepingBodies::set_anchor(int32_t body, const State& state) {
   const BodyRange& r = model_.bodies[body];
-  history_.rest_steps[body] = 0;
   std::copy_n(state.x.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count},
               history_.rest_anchor.begin() + 3 * int64_t{r.vertex_begin});
+}
+
+void SleepingBodies::restart_rest(int32_t body, const State& state) {
+  history_.rest_steps[body] = 0;
+  set_anchor(body, state);
 }
 
 void SleepingBodies::wake(int32_t body, const State& state) {
@@ -121,11 +122,7 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
     }
     // The drift is measured over windows of `steps` steps: a body resting for long while its
     // group waits for another one is not failed by the sum of its windows' jitter.
-    if (++rest[b] % steps_ == 0) {
-      const BodyRange& r = model_.bodies[b];
-      std::copy_n(state.x.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count},
-                  history_.rest_anchor.begin() + 3 * int64_t{r.vertex_begin});
-    }
+    if (++rest[b] % steps_ == 0) set_anchor(b, state);
   }
   // Contact groups over the free and driven bodies.
   DisjointSets sets;

@@ -66,6 +66,8 @@ class SleepingBodies {
  private:
   enum class Kind : uint8_t { free, driven, fixed };  // may sleep; never sleeps; links nothing
   void wake(int32_t body, const State& state);
+  // The body's drift is measured from its positions in `state` from now on.
+  void set_anchor(int32_t body, const State& state);
   void restart_rest(int32_t body, const State& state);
 
   const Model& model_;
