@@ -3,10 +3,24 @@
 
 #include <cholmod.h>
 #include <dlfcn.h>
-#include <omp.h>
 
 #include <cstring>
 #include <string>
+
+// Debian's CHOLMOD (SuiteSparse 5) opens an OpenMP parallel region around small loops of every
+// supernode. Even a region that runs on one thread ends in libgomp's team barrier, whose release
+// is a futex_wake system call made whether or not a thread waits: on pile_100 that was 15% of the
+// CPU time (perf, under a virtual machine's system-call cost) and a 30% longer run. This definition
+// takes the place of libgomp's entry point for every library of the process (the executable's
+// symbol comes first in the dynamic lookup) and runs the region's body once on the calling thread,
+// which is what a region of one thread does: outside any region omp_get_num_threads() is 1 and
+// omp_get_thread_num() 0, so the body's loop covers all of its range. CHOLMOD calls no other
+// GOMP_ entry point. Its regions thus never start threads that would spin against TBB's for the
+// same two cores (a 2.4x slowdown measured on the cantilever before they were kept to one), and the
+// factorisation does not depend on any thread count. tests/engine/test_cholmod_solver.cpp checks that this one is the one found.
+extern "C" void GOMP_parallel(void (*body)(void*), void* data, unsigned /*num_threads*/, unsigned /*flags*/) {
+  body(data);
+}
 
 namespace nexdyn {
 
@@ -67,11 +81,6 @@ bool CholmodSolver::blas_is_thread_safe() { return threaded_openblas() != nullpt
 
 CholmodSolver::CholmodSolver(bool supernodal) {
   blas_is_thread_safe();  // before any BLAS call: a threaded OpenBLAS must first be set to one thread
-  // Debian's CHOLMOD runs small loops of the supernodal factorisation in OpenMP regions with a
-  // hard-coded num_threads clause; their threads spin against TBB's for the same two cores (a 2.4x
-  // slowdown measured on the cantilever). No active parallel level means every such region runs
-  // on the calling thread, which also keeps the factorisation independent of any thread count.
-  omp_set_max_active_levels(0);
   common_ = new cholmod_common;
   cholmod_l_start(common_);
   common_->supernodal = supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;
@@ -144,7 +153,6 @@ StepStatus CholmodSolver::factorize(const double* values) {
     error_ = "CHOLMOD numeric factorisation asked for without a symbolic analysis (the last one failed)";
     return StepStatus::linear_solver_failed;
   }
-  omp_set_max_active_levels(0);  // again: this may be another thread than the constructor's
   cholmod_sparse a = wrap(n_, col_ptr_, row_idx_, values);
   const int ok = cholmod_l_factorize(&a, factor_, common_);
   if (common_->status == CHOLMOD_NOT_POSDEF) {
