@@ -9,15 +9,16 @@
 
 // Debian's CHOLMOD (SuiteSparse 5) opens an OpenMP parallel region around small loops of every
 // supernode. Even a region that runs on one thread ends in libgomp's team barrier, whose release
-// is a futex_wake system call made whether or not a thread waits: on pile_100 that was 15% of the
-// CPU time (perf, under a virtual machine's system-call cost) and a 30% longer run. This definition
-// takes the place of libgomp's entry point for every library of the process (the executable's
-// symbol comes first in the dynamic lookup) and runs the region's body once on the calling thread,
-// which is what a region of one thread does: outside any region omp_get_num_threads() is 1 and
-// omp_get_thread_num() 0, so the body's loop covers all of its range. CHOLMOD calls no other
-// GOMP_ entry point. Its regions thus never start threads that would spin against TBB's for the
-// same two cores (a 2.4x slowdown measured on the cantilever before they were kept to one), and the
-// factorisation does not depend on any thread count. tests/engine/test_cholmod_solver.cpp checks that this one is the one found.
+// is a futex_wake system call made whether or not a thread waits: on pile_100 that was a fifth of
+// the CPU samples (perf, under a virtual machine's system-call cost), and a one-thread run took
+// 46% longer. This definition takes the place of libgomp's entry point for every library of the
+// process (the executable's symbol comes first in the dynamic lookup) and runs the region's body
+// once on the calling thread, which is what a region of one thread does: outside any region
+// omp_get_num_threads() is 1 and omp_get_thread_num() 0, so the body's loop covers all of its
+// range. CHOLMOD calls no other GOMP_ entry point. Its regions thus never start threads that would
+// spin against TBB's for the same two cores (a 2.4x slowdown measured on the cantilever before
+// they were kept to one), and the factorisation does not depend on any thread count.
+// tests/engine/solver/test_cholmod_solver.cpp checks that this definition is the one found.
 extern "C" void GOMP_parallel(void (*body)(void*), void* data, unsigned /*num_threads*/, unsigned /*flags*/) {
   body(data);
 }

@@ -167,11 +167,4 @@ TEST_CASE("cholmod solver: CHOLMOD's OpenMP regions reach the engine's GOMP_para
   REQUIRE(gomp != nullptr);  // loaded: CHOLMOD needs it for omp_get_thread_num and the like
   CHECK(dlsym(gomp, "GOMP_parallel") != found);
   dlclose(gomp);
-
-  // And the supernodal factorisation, whose regions these are, still solves.
-  Tridiagonal t;
-  CholmodSolver solver(/*supernodal=*/true);
-  REQUIRE(t.analyze(solver) == StepStatus::ok);
-  REQUIRE(solver.factorize(t.values.data()) == StepStatus::ok);
-  check_solves(solver, t);
 }
