@@ -1,27 +1,12 @@
 // CHOLMOD wrapper (see cholmod_solver.hpp).
 #include "engine/solver/cholmod_solver.hpp"
 
+#include "engine/solver/cholmod_runtime.hpp"
+
 #include <cholmod.h>
-#include <dlfcn.h>
 
 #include <cstring>
 #include <string>
-
-// Debian's CHOLMOD (SuiteSparse 5) opens an OpenMP parallel region around small loops of every
-// supernode. Even a region that runs on one thread ends in libgomp's team barrier, whose release
-// is a futex_wake system call made whether or not a thread waits: on pile_100 that was a fifth of
-// the CPU samples (perf, under a virtual machine's system-call cost), and a one-thread run took
-// 46% longer. This definition takes the place of libgomp's entry point for every library of the
-// process (the executable's symbol comes first in the dynamic lookup) and runs the region's body
-// once on the calling thread, which is what a region of one thread does: outside any region
-// omp_get_num_threads() is 1 and omp_get_thread_num() 0, so the body's loop covers all of its
-// range. CHOLMOD calls no other GOMP_ entry point. Its regions thus never start threads that would
-// spin against TBB's for the same two cores (a 2.4x slowdown measured on the cantilever before
-// they were kept to one), and the factorisation does not depend on any thread count.
-// tests/engine/solver/test_cholmod_solver.cpp checks that this definition is the one found.
-extern "C" void GOMP_parallel(void (*body)(void*), void* data, unsigned /*num_threads*/, unsigned /*flags*/) {
-  body(data);
-}
 
 namespace nexdyn {
 
@@ -60,28 +45,11 @@ std::string status_text(int status) {
 }
 }  // namespace
 
-namespace {
-using SetThreads = void (*)(int);
-// OpenBLAS's openblas_set_num_threads when its build is thread-safe, else null.
-SetThreads threaded_openblas() {
-  // Looked up at run time: which BLAS libblas.so.3 is depends on the machine's alternatives.
-  static const SetThreads set_threads = []() -> SetThreads {
-    using GetParallel = int (*)();
-    const auto get_parallel = reinterpret_cast<GetParallel>(dlsym(RTLD_DEFAULT, "openblas_get_parallel"));
-    const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-    if (!get_parallel || !set || get_parallel() == 0) return nullptr;  // 0: the serial build
-    set(1);
-    return set;
-  }();
-  return set_threads;
-}
-}  // namespace
-
-bool CholmodSolver::blas_is_thread_safe() { return threaded_openblas() != nullptr; }
+bool CholmodSolver::blas_is_thread_safe() { return set_up_cholmod_runtime(); }
 
 
 CholmodSolver::CholmodSolver(bool supernodal) {
-  blas_is_thread_safe();  // before any BLAS call: a threaded OpenBLAS must first be set to one thread
+  set_up_cholmod_runtime();  // before CHOLMOD allocates anything
   common_ = new cholmod_common;
   cholmod_l_start(common_);
   common_->supernodal = supernodal ? CHOLMOD_SUPERNODAL : CHOLMOD_SIMPLICIAL;

@@ -26,9 +26,8 @@ namespace nexdyn {
 
 class CholmodSolver {
  public:
-  // Supernodal factors run dense BLAS kernels on supernodes: the fastest choice for large
-  // matrices. Simplicial ones (an LDL^T, no BLAS) win on small ones and can run on several threads
-  // at once (island_system.hpp).
+  // Supernodal factors run dense kernels on supernodes (cholmod_runtime.hpp): the fastest choice
+  // for large matrices. Simplicial ones (no dense kernels) win on the smallest (island_system.hpp).
   explicit CholmodSolver(bool supernodal = true);
   ~CholmodSolver();
   CholmodSolver(const CholmodSolver&) = delete;
@@ -54,10 +53,9 @@ class CholmodSolver {
   // Why the last failed call failed; kept until the next failure.
   const std::string& error() const { return error_; }
 
-  // Whether the BLAS under CHOLMOD may be called from several threads at once. True for OpenBLAS
-  // built with threading (pthreads or OpenMP: its buffers are locked), which is then told to run
-  // each call on its caller's thread only, so the sums do not depend on any thread count; false
-  // for the serial OpenBLAS (unlocked global buffers) and for a BLAS it cannot identify.
+  // Whether CHOLMOD's dense kernels may run on several threads at once: true when they are the
+  // engine's own (cholmod_runtime.hpp), which take no lock and share no buffer; false if some
+  // other BLAS got CHOLMOD's calls (the serial OpenBLAS, for one, must not be called concurrently).
   static bool blas_is_thread_safe();
   // Non-zeros of the Cholesky factor and flops of one factorisation, from the last analysis.
   double factor_nonzeros() const;

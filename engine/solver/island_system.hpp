@@ -8,11 +8,11 @@
 // Small islands are factorised dense (a 27-vertex box is an 81 x 81 matrix: a dense Cholesky is
 // faster than any sparse bookkeeping). Larger ones go to CHOLMOD: simplicial up to a size where
 // supernodes pay off, supernodal beyond (a torus of 600 DOFs already factorises 1.7x faster).
-// Supernodal CHOLMOD calls the BLAS. The threaded OpenBLAS (what build.sh installs) locks its
-// buffers and is set to one thread per call, so all islands run in parallel; the serial OpenBLAS
-// keeps unlocked global buffers, and under it supernodal islands must never be factorised or
-// solved at the same time as each other (must_run_alone(); newton.cpp runs them one after the
-// other). Each island's numbers are the same either way.
+// Supernodal CHOLMOD runs dense kernels per supernode; they are the engine's own
+// (cholmod_runtime.hpp), which take no lock, so all islands run in parallel. Were they some
+// other BLAS's, which may keep unlocked global buffers (the serial OpenBLAS does), supernodal
+// islands must never be factorised or solved at the same time as each other (must_run_alone();
+// newton.cpp runs them one after the other). Each island's numbers are the same either way.
 //
 // Nothing here throws: a block that is not positive definite, a CHOLMOD failure, a pattern over
 // the 32-bit value tables or memory running out while building them all come back as a

@@ -7,6 +7,8 @@
 // use it only around calls the test makes itself (doctest runs one test at a time).
 #pragma once
 
+#include "engine/solver/cholmod_runtime.hpp"
+
 #include <SuiteSparse_config.h>
 
 #include <cstddef>
@@ -15,7 +17,9 @@ namespace nexdyn::test {
 
 class SuiteSparseOutOfMemory {
  public:
-  SuiteSparseOutOfMemory() : saved_(SuiteSparse_config) {
+  // The engine's allocator is set up first, so that the first CholmodSolver made under this
+  // object does not put it back in place of the failing one.
+  SuiteSparseOutOfMemory() : saved_((nexdyn::set_up_cholmod_runtime(), SuiteSparse_config)) {
     SuiteSparse_config.malloc_func = [](size_t) -> void* { return nullptr; };
     SuiteSparse_config.calloc_func = [](size_t, size_t) -> void* { return nullptr; };
     SuiteSparse_config.realloc_func = [](void*, size_t) -> void* { return nullptr; };

@@ -2,14 +2,12 @@
 // and supernodal: a singular and an indefinite matrix are refused with factorization_failed and
 // a sentence, CHOLMOD running out of memory in each of its three calls comes back as
 // linear_solver_failed naming the call and CHOLMOD's status, nothing throws, and the same solver
-// works again once the matrix or the memory is back; CHOLMOD's OpenMP regions run through the
-// engine's own GOMP_parallel.
+// works again once the matrix or the memory is back.
 #include "engine/solver/cholmod_solver.hpp"
 #include "engine/solver/hessian_pattern.hpp"
 #include "tests/engine/solver/suitesparse_out_of_memory.hpp"
 #include "tests/engine/test_support.hpp"
 
-#include <dlfcn.h>
 #include <doctest/doctest.h>
 
 #include <Eigen/Dense>
@@ -20,9 +18,6 @@
 #include <vector>
 
 using namespace nexdyn;
-
-// Defined in engine/solver/cholmod_solver.cpp.
-extern "C" void GOMP_parallel(void (*body)(void*), void* data, unsigned num_threads, unsigned flags);
 
 namespace {
 
@@ -156,15 +151,4 @@ TEST_CASE("cholmod solver: out of memory in the analysis, the factorisation or t
     REQUIRE(third.solve(t.rhs.data(), x.data()) == StepStatus::ok);
     CHECK(t.residual(x) <= 1e-14);
   }
-}
-
-TEST_CASE("cholmod solver: CHOLMOD's OpenMP regions reach the engine's GOMP_parallel, not libgomp's") {
-  // dlsym over the global scope finds what the dynamic linker bound CHOLMOD's reference to. Were it
-  // libgomp's, every supernode of every factorisation would end in a futex_wake system call.
-  void* const found = dlsym(RTLD_DEFAULT, "GOMP_parallel");
-  CHECK(found == reinterpret_cast<void*>(&GOMP_parallel));
-  void* const gomp = dlopen("libgomp.so.1", RTLD_LAZY | RTLD_NOLOAD);
-  REQUIRE(gomp != nullptr);  // loaded: CHOLMOD needs it for omp_get_thread_num and the like
-  CHECK(dlsym(gomp, "GOMP_parallel") != found);
-  dlclose(gomp);
 }
