@@ -16,9 +16,7 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <cstdint>
 #include <cstring>
-#include <mutex>
 #include <vector>
 
 namespace {
@@ -83,75 +81,10 @@ void triangular_solve(const ConstMatrix& a, bool lower, bool trans, bool unit_di
 // are fixed offsets into them, which depend on the matrix's structure alone.
 constexpr size_t kAlignment = 64;
 
-// Big blocks CHOLMOD frees are kept for its next allocations of about their size. A new
-// analysis frees the island's factor and the next factorisation allocates one of about the same
-// size; memory the process holds costs nothing to use again, while a fresh mapping is zeroed and
-// faulted in page by page on first touch. (The folding mat re-analyses about 16 times per step,
-// each time for a factor of 90 to 150 MB.) At most kCachedBytes are held idle, the oldest blocks
-// going back to the system first.
-class BlockCache {
- public:
-  static constexpr size_t kMinBytes = size_t{1} << 20;
-  static constexpr size_t kCachedBytes = size_t{256} << 20;
-
-  ~BlockCache() {
-    for (const Block& b : blocks_) std::free(b.p);
-  }
-  // A kept block of at least `size` usable bytes and at most a quarter more, or null.
-  void* take(size_t size) {
-    if (size < kMinBytes) return nullptr;
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto best = blocks_.end();
-    for (auto it = blocks_.begin(); it != blocks_.end(); ++it)
-      if (it->bytes >= size && it->bytes - size <= size / 4 && (best == blocks_.end() || it->bytes < best->bytes)) best = it;
-    if (best == blocks_.end()) return nullptr;
-    void* p = best->p;
-    held_ -= best->bytes;
-    blocks_.erase(best);
-    return p;
-  }
-  // Keeps p if it is big (and aligned: a block CHOLMOD got before the engine's allocator was in
-  // place may not be), else frees it.
-  void give(void* p) {
-    const size_t bytes = p ? malloc_usable_size(p) : 0;
-    if (bytes < kMinBytes || bytes > kCachedBytes || reinterpret_cast<uintptr_t>(p) % kAlignment != 0)
-      return std::free(p);
-    std::vector<void*> evicted;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      blocks_.push_back({p, bytes});
-      held_ += bytes;
-      while (held_ > kCachedBytes) {
-        evicted.push_back(blocks_.front().p);
-        held_ -= blocks_.front().bytes;
-        blocks_.erase(blocks_.begin());
-      }
-    }
-    for (void* q : evicted) std::free(q);
-  }
-
- private:
-  struct Block {
-    void* p;
-    size_t bytes;
-  };
-  std::mutex mutex_;
-  std::vector<Block> blocks_;  // oldest first
-  size_t held_ = 0;
-};
-
-BlockCache& block_cache() {
-  static BlockCache cache;
-  return cache;
-}
-
 void* aligned_malloc(size_t size) {
-  if (void* kept = block_cache().take(size)) return kept;
   void* p = nullptr;
   return posix_memalign(&p, kAlignment, std::max<size_t>(size, 1)) == 0 ? p : nullptr;
 }
-
-void aligned_free(void* p) { block_cache().give(p); }
 
 void* aligned_calloc(size_t count, size_t size) {
   if (size != 0 && count > SIZE_MAX / size) return nullptr;
@@ -166,7 +99,7 @@ void* aligned_realloc(void* p, size_t size) {
   void* q = aligned_malloc(size);
   if (!q) return nullptr;
   std::memcpy(q, p, std::min(size, malloc_usable_size(p)));
-  aligned_free(p);
+  std::free(p);
   return q;
 }
 
@@ -276,12 +209,11 @@ namespace nexdyn {
 
 bool set_up_cholmod_runtime() {
   static const bool bound = [] {
-    // Before CHOLMOD allocates anything (aligned_free takes malloc's blocks too).
-    block_cache();  // built first, so destroyed after anything static that frees into it
+    // Before CHOLMOD allocates anything (free() takes both malloc's blocks and these).
     SuiteSparse_config.malloc_func = aligned_malloc;
     SuiteSparse_config.calloc_func = aligned_calloc;
     SuiteSparse_config.realloc_func = aligned_realloc;
-    SuiteSparse_config.free_func = aligned_free;
+    SuiteSparse_config.free_func = std::free;
     const std::pair<const char*, void*> ours[] = {
         {"GOMP_parallel", reinterpret_cast<void*>(&GOMP_parallel)},
         {"dgemm_", reinterpret_cast<void*>(&dgemm_)},

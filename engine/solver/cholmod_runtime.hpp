@@ -12,9 +12,7 @@
 //     threads at all. Eigen's kernels take no lock and call no other thread.
 // CHOLMOD's memory comes from an allocator that starts every block on a 64-byte boundary: where
 // Eigen's kernels start their packets depends on the address, so without it the factor depended
-// on which thread's malloc arena an island's arrays came from. Big blocks CHOLMOD frees are kept
-// (up to 256 MB) for its next requests of about their size: a new analysis frees a factor and the
-// next factorisation asks for one as big, which fresh memory would make it fault in page by page.
+// on which thread's malloc arena an island's arrays came from.
 // docs/performance.md ("Piles that come to rest", second and third rounds) has the figures.
 #pragma once
 

@@ -2,17 +2,13 @@
 // CHOLMOD's calls reach them, and each routine keeps its reference-BLAS contract, checked against
 // plain loops over every flag combination, with leading dimensions larger than the rows, vector
 // strides other than 1 (negative ones run from the far end), beta = 0 over a C full of NaN (BLAS
-// does not read it) and a matrix whose third leading minor is not positive definite. CHOLMOD's
-// memory is 64-byte aligned, and a big block it frees serves its next request of about that size.
+// does not read it) and a matrix whose third leading minor is not positive definite.
 #include "engine/solver/cholmod_runtime.hpp"
 
-#include <SuiteSparse_config.h>
 #include <dlfcn.h>
 #include <doctest/doctest.h>
 
 #include <cmath>
-#include <cstdint>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -268,42 +264,4 @@ TEST_CASE("cholmod runtime: dgemv against plain loops with strides, dpotrf's fac
     dpotrf_(uplo, &size, bad.data.data(), &bad.ld, &info);
     CHECK(info == 3);
   }
-}
-
-TEST_CASE("cholmod runtime: CHOLMOD's memory is 64-byte aligned and a freed big block serves the next request its size") {
-  REQUIRE(nexdyn::set_up_cholmod_runtime());
-  const SuiteSparse_config_struct& c = SuiteSparse_config;
-  auto aligned = [](const void* p) { return reinterpret_cast<uintptr_t>(p) % 64 == 0; };
-  for (size_t bytes : {size_t{1}, size_t{24}, size_t{1000}, size_t{3} << 20}) {
-    void* p = c.malloc_func(bytes);
-    REQUIRE(p != nullptr);
-    CHECK(aligned(p));
-    c.free_func(p);
-  }
-  const size_t big = size_t{3} << 20;
-  auto* first = static_cast<unsigned char*>(c.malloc_func(big));
-  REQUIRE(first != nullptr);
-  c.free_func(first);
-  // While it is kept, requests much larger or smaller do not get it; one a little smaller does.
-  void* larger = c.malloc_func(2 * big);
-  void* smaller = c.malloc_func(big / 2);
-  CHECK(larger != first);
-  CHECK(smaller != first);
-  void* again = c.malloc_func(big - 4096);
-  CHECK(again == first);
-  c.free_func(larger);
-  c.free_func(smaller);
-  // calloc zeroes a block that comes back from the cache; realloc keeps the contents it had.
-  std::memset(again, 0xab, big - 4096);
-  c.free_func(again);
-  auto* zeroed = static_cast<unsigned char*>(c.calloc_func(big / 8, 8));
-  REQUIRE(zeroed != nullptr);
-  CHECK(zeroed == first);
-  CHECK((zeroed[0] == 0 && zeroed[big / 2] == 0 && zeroed[big - 1] == 0));
-  zeroed[17] = 42;
-  auto* moved = static_cast<unsigned char*>(c.realloc_func(zeroed, 5 * big));
-  REQUIRE(moved != nullptr);
-  CHECK(aligned(moved));
-  CHECK((moved[17] == 42 && moved[big - 1] == 0));
-  c.free_func(moved);
 }
