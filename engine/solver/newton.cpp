@@ -172,13 +172,10 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   active_system_.resize(count);
   active_status_.assign(count, StepStatus::ok);
   for (int64_t a = 0; a < count; ++a) active_system_[a] = &island_system(active_[a]);
-  // The big islands solved in neither this solve nor the one before give their factors back.
-  // Those of the solve before are kept: a step may alternate between two solves of different
-  // islands (a kinematic boundary's pull, then its hold), and a factor given back and allocated
-  // again is fresh memory that every iteration's factorisation faults in page by page.
+  // The big islands not solved now (frozen, or from an earlier solve) give their factors back.
   for (auto& [hash, bucket] : systems_)
     for (auto& system : bucket)
-      if (system->last_used < solve_count_ - 1 && system->num_dofs() > IslandSystem::kSimplicialDofs)
+      if (system->last_iteration != iteration_count_ && system->num_dofs() > IslandSystem::kSimplicialDofs)
         system->release_numeric();
   {
     // Symbolic analyses of islands whose block of the pattern changed (no BLAS: all parallel).
