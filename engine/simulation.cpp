@@ -392,7 +392,7 @@ NewtonResult Simulation::solve_kinematic(const StepContext& ctx, int& iterations
     }
   }
   kinematic_on_target_ = true;
-  newton_->hold(kinematic_.vertices(), true);
+  newton_->hold(kinematic_.vertices(), true, /*in_islands=*/true);
   return solve_with_joints(ctx, iterations);
 }
 

@@ -66,12 +66,16 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   hold({}, false);
 }
 
-void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held) {
-  for (int32_t v : vertices)
+void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held, bool in_islands) {
+  held_in_islands_.resize(model_.num_vertices, 0);
+  for (int32_t v : vertices) {
     for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = held;
+    held_in_islands_[v] = held && in_islands;
+  }
   collect_constrained_values();
   std::vector<uint8_t> moving(model_.num_vertices);
-  for (int32_t v = 0; v < model_.num_vertices; ++v) moving[v] = !constrained_dof_[3 * int64_t{v}];
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    moving[v] = !constrained_dof_[3 * int64_t{v}] || held_in_islands_[v];
   islands_.set_moving(moving);
 }
 

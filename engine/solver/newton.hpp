@@ -78,8 +78,12 @@ class NewtonSolver {
   void set_profile(StepProfile* profile) { profile_ = profile; }
 
   // Holds these vertices where they are in the coming solves (held = true), or releases them
-  // again; for kinematic vertices once they are on their targets (engine/kinematic_targets.hpp).
-  void hold(const std::vector<int32_t>& vertices, bool held);
+  // again; for kinematic vertices once they are on their targets (engine/kinematic_targets.hpp),
+  // and for sleeping bodies. Vertices held `in_islands` stay in the islands they were solved in,
+  // as rows of the identity: a kinematic boundary is pulled in one solve and held in the next,
+  // and so both solve the same islands with the same factors (without it, each solve of the
+  // 100x100 mat gave the other's 88 MB factor back and faulted a fresh one in).
+  void hold(const std::vector<int32_t>& vertices, bool held, bool in_islands = false);
 
   // Re-solving after a change that touches only some vertices (a new friction lag): the next
   // solve keeps every island that converged in the last one frozen, except those thawed here
@@ -137,6 +141,7 @@ class NewtonSolver {
   bool history_points_ = false;
   int64_t analyzed_version_ = -1;
   std::vector<uint8_t> constrained_dof_;      // (3n) 1 where a Dirichlet condition holds
+  std::vector<uint8_t> held_in_islands_;      // (n) 1: held, yet kept in its island (hold())
   std::vector<int64_t> constrained_values_;   // value indices in a constrained row or column
   std::vector<double> grad_, direction_, values_, trial_;
 
