@@ -56,13 +56,14 @@ void BoxTree::build(const double* lower, const double* upper, int32_t begin, int
   ids_.resize(order_.size());
   for (size_t s = 0; s < order_.size(); ++s) ids_[s] = order_[s].second;
   nodes_.reserve(static_cast<size_t>(end - begin) / 2 + 1);
-  build_node(0, end - begin, lo, hi);
+  int32_t max_id;
+  build_node(0, end - begin, lo, hi, max_id);
 }
 
 // Appends the node over slots [first, first + count) of the Morton order and its subtrees;
-// returns its index and writes the union of its boxes to lo, hi. Up to 4 primitives become the
+// returns its index and writes the union of its boxes to lo, hi and its largest id to max_id. Up to 4 primitives become the
 // children; more are cut into 4 runs of (nearly) equal length, which keeps the tree balanced.
-int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi) {
+int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi, int32_t& max_id) {
   const auto index = static_cast<int32_t>(nodes_.size());
   nodes_.emplace_back();
   for (int k = 0; k < kWidth; ++k) {
@@ -71,6 +72,7 @@ int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi
       nodes_[index].upper[d][k] = -std::numeric_limits<double>::infinity();
     }
     nodes_[index].child[k] = 0;  // absent children never overlap anything
+    nodes_[index].max_id[k] = -1;
   }
   nodes_[index].primitive_mask = 0;
 
@@ -93,9 +95,10 @@ int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi
     lo[d] = std::numeric_limits<double>::infinity();
     hi[d] = -std::numeric_limits<double>::infinity();
   }
+  max_id = -1;
   for (int k = 0; k < groups; ++k) {
     double child_lo[3], child_hi[3];
-    int32_t child;
+    int32_t child, child_max_id;
     if (group_count[k] == 1) {
       const int64_t id = ids_[group_first[k]];
       for (int d = 0; d < 3; ++d) {
@@ -103,11 +106,14 @@ int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi
         child_hi[d] = upper_[3 * id + d];
       }
       child = ~ids_[group_first[k]];
+      child_max_id = ids_[group_first[k]];
     } else {
-      child = build_node(group_first[k], group_count[k], child_lo, child_hi);
+      child = build_node(group_first[k], group_count[k], child_lo, child_hi, child_max_id);
     }
+    max_id = std::max(max_id, child_max_id);
     Node& node = nodes_[index];  // build_node may have moved the vector
     node.child[k] = child;
+    node.max_id[k] = child_max_id;
     if (group_count[k] == 1) node.primitive_mask |= 1u << k;
     for (int d = 0; d < 3; ++d) {
       node.lower[d][k] = child_lo[d];

@@ -84,11 +84,12 @@ class CandidateSearch {
   // Trees over the world boxes of the neighbours too many to scan.
   void build_neighbor_trees();
   // A tree query's partners, sorted (trees report in no particular order).
+  // min_id: only partners above it (-1: all).
   template <typename Keep>
   static void put_tree_hits(const BoxTree& tree, const double* lo, const double* hi, int32_t first, Keep&& keep,
-                            PairBuffer& buffer) {
+                            PairBuffer& buffer, int32_t min_id = -1) {
     const size_t start = buffer.size();
-    tree.query(lo, hi, [&](int32_t p) {
+    tree.query_above(lo, hi, min_id, [&](int32_t p) {
       buffer.room(1);
       buffer.put(first, p, keep(p));
     });
@@ -190,8 +191,8 @@ void CandidateSearch::edge_edge_pairs(std::vector<IndexPair>& out) const {
           const double* own_lo = &own_.e_lo[3 * int64_t{a}];
           const double* own_hi = &own_.e_hi[3 * int64_t{a}];
           if (same_body_.edge_tree[body]) {
-            auto keep = [&](int32_t b) { return (b > a) & keep_edge_edge(m_, free_, a, b); };
-            put_tree_hits(same_body_.edges[body], own_lo, own_hi, a, keep, buffer);
+            auto keep = [&](int32_t b) { return keep_edge_edge(m_, free_, a, b); };
+            put_tree_hits(same_body_.edges[body], own_lo, own_hi, a, keep, buffer, /*min_id=*/a);
           } else {
             auto keep = [&](int32_t b) { return keep_edge_edge(m_, free_, a, b); };
             int32_t* ids = buffer.scratch(own_lists_.edges.size(body));
