@@ -61,8 +61,9 @@ void BoxTree::build(const double* lower, const double* upper, int32_t begin, int
 }
 
 // Appends the node over slots [first, first + count) of the Morton order and its subtrees;
-// returns its index and writes the union of its boxes to lo, hi and its largest id to max_id. Up to 4 primitives become the
-// children; more are cut into 4 runs of (nearly) equal length, which keeps the tree balanced.
+// returns its index and writes the union of its boxes to lo, hi and its largest id to max_id.
+// Up to 4 primitives become the children; more are cut into 4 runs of (nearly) equal length,
+// which keeps the tree balanced.
 int32_t BoxTree::build_node(int32_t first, int32_t count, double* lo, double* hi, int32_t& max_id) {
   const auto index = static_cast<int32_t>(nodes_.size());
   nodes_.emplace_back();

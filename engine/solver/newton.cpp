@@ -56,6 +56,7 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
     : model_(model), potential_(potential), islands_(potential.elastic_pattern(), model.num_vertices) {
   const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
+  held_in_islands_.assign(model.num_vertices, 0);
   for (int32_t v = 0; v < model.num_vertices; ++v)
     if (model.eliminated(v))
       for (int d = 0; d < 3; ++d) constrained_dof_[3 * v + d] = 1;
@@ -67,7 +68,6 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
 }
 
 void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held, bool in_islands) {
-  held_in_islands_.resize(model_.num_vertices, 0);
   for (int32_t v : vertices) {
     for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = held;
     held_in_islands_[v] = held && in_islands;
