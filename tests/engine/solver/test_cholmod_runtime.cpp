@@ -2,13 +2,16 @@
 // CHOLMOD's calls reach them, and each routine keeps its reference-BLAS contract, checked against
 // plain loops over every flag combination, with leading dimensions larger than the rows, vector
 // strides other than 1 (negative ones run from the far end), beta = 0 over a C full of NaN (BLAS
-// does not read it) and a matrix whose third leading minor is not positive definite.
+// does not read it) and a matrix whose third leading minor is not positive definite; and CHOLMOD's
+// memory: aligned, big blocks on huge-page boundaries, realloc's contract kept.
 #include "engine/solver/cholmod_runtime.hpp"
 
+#include <SuiteSparse_config.h>
 #include <dlfcn.h>
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <random>
 #include <vector>
@@ -264,4 +267,44 @@ TEST_CASE("cholmod runtime: dgemv against plain loops with strides, dpotrf's fac
     dpotrf_(uplo, &size, bad.data.data(), &bad.ld, &info);
     CHECK(info == 3);
   }
+}
+
+TEST_CASE("cholmod runtime: CHOLMOD's blocks are 64-byte aligned, big ones on 2 MB, and keep realloc's contract") {
+  REQUIRE(nexdyn::set_up_cholmod_runtime());
+  const SuiteSparse_config_struct& c = SuiteSparse_config;
+  auto offset = [](const void* p, uintptr_t alignment) { return reinterpret_cast<uintptr_t>(p) % alignment; };
+  const size_t big = size_t{9} << 20;  // over the 8 MB from which blocks ask for huge pages
+  for (size_t bytes : {size_t{1}, size_t{24}, size_t{1000}, size_t{3} << 20, big}) {
+    auto* p = static_cast<unsigned char*>(c.malloc_func(bytes));
+    REQUIRE(p != nullptr);
+    CHECK(offset(p, 64) == 0);
+    if (bytes >= big) CHECK(offset(p, uintptr_t{2} << 20) == 0);
+    p[0] = p[bytes - 1] = 7;  // the whole block is ours
+    c.free_func(p);
+  }
+  // calloc zeroes a big block too (its pages may come back from an earlier, written one).
+  auto* zeroed = static_cast<unsigned char*>(c.calloc_func(big / 8, 8));
+  REQUIRE(zeroed != nullptr);
+  size_t nonzero = 0;
+  for (size_t k = 0; k < big; k += 4093) nonzero += zeroed[k] != 0;
+  CHECK(nonzero == 0);
+  c.free_func(zeroed);
+  // realloc keeps the first min(old, new) bytes across the 8 MB line, in both directions.
+  auto* p = static_cast<unsigned char*>(c.malloc_func(1000));
+  REQUIRE(p != nullptr);
+  for (int k = 0; k < 1000; ++k) p[k] = static_cast<unsigned char>(k * 31);
+  auto* grown = static_cast<unsigned char*>(c.realloc_func(p, big));
+  REQUIRE(grown != nullptr);
+  CHECK(offset(grown, uintptr_t{2} << 20) == 0);
+  bool kept = true;
+  for (int k = 0; k < 1000; ++k) kept &= grown[k] == static_cast<unsigned char>(k * 31);
+  CHECK(kept);
+  grown[big - 1] = 5;
+  auto* shrunk = static_cast<unsigned char*>(c.realloc_func(grown, 500));
+  REQUIRE(shrunk != nullptr);
+  CHECK(offset(shrunk, 64) == 0);
+  kept = true;
+  for (int k = 0; k < 500; ++k) kept &= shrunk[k] == static_cast<unsigned char>(k * 31);
+  CHECK(kept);
+  c.free_func(shrunk);
 }
