@@ -175,7 +175,7 @@ bool ContactPattern::fit_pairs(const std::vector<int32_t>& stencils, bool allow_
       used += (word & bit) == 0;
       word |= bit;
     });
-    if (static_cast<int64_t>(contact_pairs_.size()) > 4 * used + 64) {
+    if (static_cast<double>(contact_pairs_.size()) > kShrinkRatio * static_cast<double>(used) + kShrinkSlack) {
       rebuild(pairs_where([&](int32_t i, int32_t j, int64_t) { return !elastic_has(i, j); }));
       changed = true;
     }

@@ -5,7 +5,7 @@
 // one pattern, and redoing it costs about as much as a factorisation. So the pattern keeps every
 // pair it has been given (a superset is still a valid pattern: absent pairs are stored zeros) and
 // is rebuilt only when a stencil needs a pair it lacks, or, at the start of a step, when it has
-// grown to several times what the current contacts need.
+// grown well past what the current contacts need (kShrinkRatio).
 //
 // Values: the elastic values (in the elastic pattern's order) are merged column by column, then
 // the contact slabs are added through a gather table built per active set: one entry per 3x3
@@ -36,12 +36,18 @@ class ContactPattern {
   // Makes the pattern hold every vertex pair of the stencils and builds their gather table.
   // stencils: (num x 4) vertex ids, -1 = no DOFs (held, or past the stencil's n vertices);
   // slab_begin: (num + 1) start of each stencil's column-major 3n x 3n slab in the slab array,
-  // so n = sqrt(slab size) / 3. With allow_shrink, a pattern holding over 4x the pairs the
-  // stencils need is rebuilt to fit them. Returns true when the pattern changed. Over 2^32 contact
+  // so n = sqrt(slab size) / 3. With allow_shrink, a pattern holding more than
+  // kShrinkRatio x (the pairs the stencils need) + kShrinkSlack pairs is rebuilt to fit them. Returns true when the pattern changed. Over 2^32 contact
   // values (more than the gather table's indices reach) it throws std::length_error before
   // changing anything; NewtonSolver turns that into a failed step (newton.hpp).
   bool update(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
               bool allow_shrink);
+  // A pair the contacts no longer use is a stored zero, but CHOLMOD factorises it all the same:
+  // on the folded 100x100 mat the stale pairs of a pattern kept until 4x made the factorisation
+  // 1.5x dearer (docs/performance.md, issue 19 fifth round). Each rebuild costs a new symbolic
+  // analysis of the islands it touches, hence a margin rather than an exact fit.
+  static constexpr double kShrinkRatio = 1.5;
+  static constexpr int64_t kShrinkSlack = 64;
 
   const CscPattern& pattern() const { return merged_; }
   // Incremented by every rebuild of the pattern.
