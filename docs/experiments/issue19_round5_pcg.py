@@ -8,6 +8,13 @@
 # ("body"), to the vertex pairs that share a tet ("mesh"), or to the 3x3 vertex blocks
 # ("jacobi3"). Prints CG iterations to relative residuals of 1e-2 .. 1e-6 and the error of the
 # direction against the exact solve (max norm).
+import os
+import sys
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as sla
 
 def load_model(path):
     with open(path, 'rb') as f:
