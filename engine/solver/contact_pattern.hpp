@@ -37,9 +37,10 @@ class ContactPattern {
   // stencils: (num x 4) vertex ids, -1 = no DOFs (held, or past the stencil's n vertices);
   // slab_begin: (num + 1) start of each stencil's column-major 3n x 3n slab in the slab array,
   // so n = sqrt(slab size) / 3. With allow_shrink, a pattern holding more than
-  // kShrinkRatio x (the pairs the stencils need) + kShrinkSlack pairs is rebuilt to fit them. Returns true when the pattern changed. Over 2^32 contact
-  // values (more than the gather table's indices reach) it throws std::length_error before
-  // changing anything; NewtonSolver turns that into a failed step (newton.hpp).
+  // kShrinkRatio x (the pairs the stencils need) + kShrinkSlack pairs is rebuilt to fit them.
+  // Returns true when the pattern changed. Over 2^32 contact values (more than the gather
+  // table's indices reach) it throws std::length_error before changing anything; NewtonSolver
+  // turns that into a failed step (newton.hpp).
   bool update(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
               bool allow_shrink);
   // A pair the contacts no longer use is a stored zero, but CHOLMOD factorises it all the same:

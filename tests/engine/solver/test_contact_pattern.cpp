@@ -53,6 +53,7 @@ TEST_CASE("contact pattern: grows to every stencil pair, keeps stale pairs, shri
   // The upper triangle: the elastic pattern plus one 3x3 block per contact pair.
   CHECK(pattern.pattern().nnz() == elastic.nnz() + 9 * held);
   const int64_t version = pattern.version();
+  const uint64_t built_stamp = stamp;
 
   // The largest number of used pairs at which `held` pairs are dropped.
   const auto shrink_below = static_cast<int32_t>(
@@ -67,6 +68,7 @@ TEST_CASE("contact pattern: grows to every stencil pair, keeps stale pairs, shri
     CHECK_FALSE(pattern.update(few.stencils, few.slab_begin, false));
     CHECK(pattern.num_contact_pairs() == held);
     CHECK(pattern.version() == version);
+    CHECK(stamp == built_stamp);
   }
   SUBCASE("at a step's start, one pair above the line keeps them") {
     const PairStencils used = first_pairs(shrink_below + 1);
@@ -80,8 +82,9 @@ TEST_CASE("contact pattern: grows to every stencil pair, keeps stale pairs, shri
     CHECK(pattern.num_contact_pairs() == shrink_below);
     CHECK(pattern.version() > version);
     CHECK(pattern.pattern().nnz() == elastic.nnz() + 9 * shrink_below);
-    // The history's pairs are the pattern's: a new name for them.
+    // The history's pairs are the pattern's, under a new name (a rolled-back history differs).
     CHECK(pairs.size() == static_cast<size_t>(shrink_below));
+    CHECK(stamp != built_stamp);
   }
   SUBCASE("a pair the pattern lacks rebuilds it, keeping the stale ones") {
     PairStencils grown = first_pairs(5);
