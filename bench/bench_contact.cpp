@@ -19,6 +19,9 @@
 //
 //   build/bench/bench_contact --benchmark_min_time=0.5
 //
+// Each stage runs on every instruction-set path the CPU has (kernels/isa.hpp), widest first;
+// NEXDYN_ISA=avx2 (or scalar) leaves out the wider ones. The context lines name the CPU.
+//
 // References (ipc-toolkit, same scenes) and targets: broad phase 125 cubes 39.6 ms (target 15),
 // 1,000 cubes 449 ms (target 180); barrier gradient 30 ms (target 15), Hessian 2,600 ms (target
 // 400); max step on 27 cubes: ipc-toolkit did not finish in 300 s (target 50 ms).
@@ -29,6 +32,7 @@
 #include "engine/elastic_assembly.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/solver/contact_pattern.hpp"
+#include "kernels/isa.hpp"
 
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
@@ -99,11 +103,14 @@ void surface_counters(benchmark::State& state, const CubeGrid& g) {
 
 // ---- 1. broad phase ---------------------------------------------------------------------------
 
+// The output lists live as long as the grid: the engine keeps its candidate lists from one
+// search to the next (BarrierPotential), so a search refills lists that already have the room.
 void broad_phase(benchmark::State& state, int k, int n) {
   CubeGrid& g = grid(k, n);
   const double* x = g.model().rest_positions.data();
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
-  ContactCandidates out;
+  static std::map<std::pair<int, int>, ContactCandidates> outputs;
+  ContactCandidates& out = outputs[{k, n}];
   for (auto _ : state) {
     find_contact_candidates(g.model(), x, nullptr, 0.5 * kDhat, out);
     benchmark::DoNotOptimize(out.vertex_triangle.data());
@@ -354,22 +361,62 @@ void BM_FrictionDerivatives_125cubes_10cells(benchmark::State& state) {
   state.counters["stencils"] = double(p.friction->num_stencils());
 }
 
-#define NEXDYN_CONTACT_BENCH(fn) \
-  BENCHMARK(fn)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()
+// Every stage on every instruction-set path this CPU runs (kernels/isa.hpp), widest first:
+// BM_<stage>/isa:<path>/threads:<n>. NEXDYN_ISA caps the paths (NEXDYN_ISA=avx2: avx2 and scalar).
+struct Stage {
+  const char* name;
+  void (*run)(benchmark::State&);
+};
+constexpr Stage kStages[] = {
+    {"BM_BroadPhase_125cubes_5cells", BM_BroadPhase_125cubes_5cells},
+    {"BM_BroadPhase_1000cubes_5cells", BM_BroadPhase_1000cubes_5cells},
+    {"BM_BarrierActiveSet_125cubes_10cells", BM_BarrierActiveSet_125cubes_10cells},
+    {"BM_BarrierGradient_125cubes_10cells", BM_BarrierGradient_125cubes_10cells},
+    {"BM_BarrierHessian_125cubes_10cells", BM_BarrierHessian_125cubes_10cells},
+    {"BM_BarrierHessian_part_derivatives", BM_BarrierHessian_part_derivatives},
+    {"BM_BarrierHessian_part_pattern_update", BM_BarrierHessian_part_pattern_update},
+    {"BM_BarrierHessian_part_merge", BM_BarrierHessian_part_merge},
+    {"BM_MaxStep_27cubes_3cells", BM_MaxStep_27cubes_3cells},
+    {"BM_FrictionLag_125cubes_10cells", BM_FrictionLag_125cubes_10cells},
+    {"BM_FrictionDerivatives_125cubes_10cells", BM_FrictionDerivatives_125cubes_10cells},
+};
 
-NEXDYN_CONTACT_BENCH(BM_BroadPhase_125cubes_5cells);
-NEXDYN_CONTACT_BENCH(BM_BroadPhase_1000cubes_5cells);
-NEXDYN_CONTACT_BENCH(BM_BarrierActiveSet_125cubes_10cells);
-NEXDYN_CONTACT_BENCH(BM_BarrierGradient_125cubes_10cells);
-NEXDYN_CONTACT_BENCH(BM_BarrierHessian_125cubes_10cells);
-NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_derivatives);
-NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_pattern_update);
-NEXDYN_CONTACT_BENCH(BM_BarrierHessian_part_merge);
-NEXDYN_CONTACT_BENCH(BM_MaxStep_27cubes_3cells);
-NEXDYN_CONTACT_BENCH(BM_FrictionLag_125cubes_10cells);
-NEXDYN_CONTACT_BENCH(BM_FrictionDerivatives_125cubes_10cells);
+void register_stages() {
+  const Isa widest = active_isa();
+  for (int i = static_cast<int>(widest); i >= 0; --i) {
+    const auto isa = static_cast<Isa>(i);
+    for (const Stage& stage : kStages) {
+      const std::string name = std::string(stage.name) + "/isa:" + isa_name(isa);
+      benchmark::RegisterBenchmark(name.c_str(), [isa, run = stage.run](benchmark::State& state) {
+        set_active_isa(isa);
+        run(state);
+      })
+          ->ArgName("threads")
+          ->Arg(1)
+          ->Arg(2)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+    }
+  }
+}
+
+// The CPU's name, for the figures' record.
+std::string cpu_model() {
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  for (std::string line; std::getline(cpuinfo, line);)
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
 
 }  // namespace
 }  // namespace nexdyn
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  benchmark::AddCustomContext("cpu_model", nexdyn::cpu_model());
+  benchmark::AddCustomContext("isa_detected", nexdyn::isa_name(nexdyn::detected_isa()));
+  nexdyn::register_stages();
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -7,21 +7,22 @@
 //
 // Layout: one array per coordinate and side. Each list is padded with empty boxes (lower +inf,
 // upper -inf, overlapping nothing) to whole blocks of kBlock boxes, so a block is one vector
-// compare per bound (AVX-512: 8 doubles). Each block also has the union of its boxes, and a scan
-// tests those first (8 blocks per compare) and skips the blocks they rule out: consecutive ids
-// of a mesh are usually near each other, so block boxes are compact. Overlap is on closed
-// intervals in doubles (boxes_overlap in bvh/broad_phase.hpp), exactly like a loop over the boxes.
+// compare per bound (AVX-512: 8 doubles; AVX2: two compares of 4). Each block also has the union
+// of its boxes, and a scan tests those first (8 blocks at a time) and skips the blocks they rule
+// out: consecutive ids of a mesh are usually near each other, so block boxes are compact. Overlap
+// is on closed intervals in doubles (boxes_overlap in bvh/broad_phase.hpp), exactly like a loop
+// over the boxes. The scan itself is in bvh/box_scan_*.cpp, one file per instruction set, chosen
+// at run time (kernels/isa.hpp); every path gives the same ids in the same order.
 #pragma once
 
 #include <algorithm>
-#include <bit>
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <vector>
-#if defined(__AVX512F__)
-#include <immintrin.h>
-#endif
+
+#include "bvh/box_scan.hpp"
+#include "kernels/isa.hpp"
 
 namespace nexdyn {
 
@@ -97,49 +98,20 @@ class BlockedBoxes {
 
 inline int32_t BlockedBoxes::scan(int32_t list, int32_t from, const double* lower,
                                   const double* upper, int32_t* out) const {
+  const box_scan::Arrays arrays{{lo_[0].get(), lo_[1].get(), lo_[2].get()},
+                                {hi_[0].get(), hi_[1].get(), hi_[2].get()},
+                                {block_lo_[0].get(), block_lo_[1].get(), block_lo_[2].get()},
+                                {block_hi_[0].get(), block_hi_[1].get(), block_hi_[2].get()},
+                                id_.get()};
   const int64_t first = first_block_[list] + from / kBlock;
   const int64_t last = first_block_[list + 1];
-  const unsigned first_lanes = ~0u << (from % kBlock);  // in block `first`: index >= from
-  int32_t count = 0;
-#if defined(__AVX512F__)
-  static_assert(kBlock == 8);
-  const __m512d qlo[3] = {_mm512_set1_pd(lower[0]), _mm512_set1_pd(lower[1]), _mm512_set1_pd(lower[2])};
-  const __m512d qhi[3] = {_mm512_set1_pd(upper[0]), _mm512_set1_pd(upper[1]), _mm512_set1_pd(upper[2])};
-  auto overlapping = [&](const std::unique_ptr<double[]>* lo, const std::unique_ptr<double[]>* hi, int64_t at,
-                         __mmask8 lanes) {
-    for (int d = 0; d < 3; ++d) {
-      lanes = _mm512_mask_cmp_pd_mask(lanes, _mm512_loadu_pd(&lo[d][at]), qhi[d], _CMP_LE_OQ);
-      lanes = _mm512_mask_cmp_pd_mask(lanes, qlo[d], _mm512_loadu_pd(&hi[d][at]), _CMP_LE_OQ);
-    }
-    return lanes;
-  };
-  for (int64_t group = first; group < last; group += kBlock) {
-    const auto in_range = static_cast<__mmask8>(last - group >= kBlock ? 0xff : (1u << (last - group)) - 1);
-    for (unsigned blocks = overlapping(block_lo_, block_hi_, group, in_range); blocks != 0;
-         blocks &= blocks - 1) {
-      const int64_t b = group + std::countr_zero(blocks);
-      const auto lanes = static_cast<__mmask8>(b == first ? first_lanes : 0xff);
-      const __mmask8 hits = overlapping(lo_, hi_, b * kBlock, lanes);
-      _mm256_mask_compressstoreu_epi32(out + count, hits,
-                                       _mm256_loadu_si256(reinterpret_cast<const __m256i*>(&id_[b * kBlock])));
-      count += std::popcount(unsigned{hits});
-    }
+  const int first_lane = from % kBlock;
+  switch (active_isa()) {
+    case Isa::avx512: return box_scan::scan_avx512(arrays, first, last, first_lane, lower, upper, out);
+    case Isa::avx2: return box_scan::scan_avx2(arrays, first, last, first_lane, lower, upper, out);
+    case Isa::scalar: break;
   }
-#else
-  auto overlaps = [&](const std::unique_ptr<double[]>* lo, const std::unique_ptr<double[]>* hi, int64_t at) {
-    bool hit = true;
-    for (int d = 0; d < 3; ++d) hit &= (lo[d][at] <= upper[d]) & (lower[d] <= hi[d][at]);
-    return hit;
-  };
-  for (int64_t b = first; b < last; ++b) {
-    if (!overlaps(block_lo_, block_hi_, b)) continue;
-    for (int k = (b == first ? from % kBlock : 0); k < kBlock; ++k) {
-      out[count] = id_[b * kBlock + k];
-      count += overlaps(lo_, hi_, b * kBlock + k);
-    }
-  }
-#endif
-  return count;
+  return box_scan::scan_scalar(arrays, first, last, first_lane, lower, upper, out);
 }
 
 }  // namespace nexdyn

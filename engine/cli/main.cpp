@@ -8,6 +8,7 @@
 #include "engine/ccd_queries.hpp"
 #include "engine/run.hpp"
 #include "engine/scene/scene.hpp"
+#include "kernels/isa.hpp"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -170,6 +171,7 @@ int main(int argc, char** argv) {
     if (a.threads > 0)
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                            static_cast<size_t>(a.threads));
+    active_isa();  // a bad NEXDYN_ISA is an error here, before any output is written
     if (*a.ccd) return run_ccd(a);
     if (*a.check) return run_check(a);
     std::filesystem::path out;

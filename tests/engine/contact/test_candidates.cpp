@@ -8,6 +8,7 @@
 #include "engine/contact/barrier_potential.hpp"
 #include "kernels/distance/edge_edge_distance.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
+#include "kernels/isa.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -15,6 +16,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <iterator>
 #include <random>
 #include <string>
@@ -184,9 +186,11 @@ TEST_CASE("a swept candidate list holds every pair close at some time of the mot
   CHECK(same_body_pairs(swept) < 3 * same_body_pairs(at_start));
 }
 
-TEST_CASE("a blocked box list scan reports the overlapping boxes from an index on, in order") {
+TEST_CASE("a blocked box list scan reports the overlapping boxes from an index on, in order, on every path") {
   // The scans behind the candidates: lists of every length around the block size, random boxes
-  // and queries, every start index; against a loop over the boxes.
+  // and queries, every start index; against a loop over the boxes. Some queries touch a box
+  // exactly (a shared face, edge or corner: closed intervals overlap there). Every
+  // instruction-set path this CPU runs (kernels/isa.hpp) must give exactly the loop's ids.
   std::mt19937 rng(8);
   std::uniform_real_distribution<double> corner(0.0, 1.0), size(0.0, 0.1);
   const std::vector<int32_t> sizes = {0, 1, 7, 8, 9, 63, 64, 65, 300};
@@ -203,26 +207,71 @@ TEST_CASE("a blocked box list scan reports the overlapping boxes from an index o
     }
     lists.finish(static_cast<int32_t>(l));
   }
-  std::vector<int32_t> found(300 + BlockedBoxes::kBlock);
-  int64_t hits = 0;
+  std::vector<std::array<double, 6>> queries;
   for (int q = 0; q < 200; ++q) {
-    double lo[3], hi[3];
+    std::array<double, 6> box;
     for (int d = 0; d < 3; ++d) {
-      lo[d] = corner(rng);
-      hi[d] = lo[d] + 3.0 * size(rng);
+      box[d] = corner(rng);
+      box[3 + d] = box[d] + 3.0 * size(rng);
     }
-    for (size_t l = 0; l < sizes.size(); ++l)
-      for (int32_t from = 0; from <= sizes[l]; ++from) {
-        std::vector<int32_t> expected;
-        for (int32_t i = from; i < sizes[l]; ++i)
-          if (boxes_overlap(lower[l].data(), upper[l].data(), i, lo, hi, 0))
-            expected.push_back(1000 * static_cast<int32_t>(l) + i);
-        const int32_t n = lists.scan(static_cast<int32_t>(l), from, lo, hi, found.data());
-        REQUIRE(std::vector<int32_t>(found.begin(), found.begin() + n) == expected);
-        hits += n;
-      }
+    queries.push_back(box);
   }
-  CHECK(hits > 1000);
+  for (int q = 0; q < 100; ++q) {  // boxes of list 8 shifted to touch box q's upper x face
+    const double* lo = &lower[8][3 * q];
+    const double* hi = &upper[8][3 * q];
+    queries.push_back({hi[0], lo[1], lo[2], hi[0] + 0.05, hi[1], hi[2]});
+  }
+  const Isa restore = active_isa();
+  std::vector<int32_t> found(300 + BlockedBoxes::kBlock);
+  for (Isa isa : kAllIsas) {
+    if (static_cast<int>(isa) > static_cast<int>(detected_isa())) continue;
+    set_active_isa(isa);
+    CAPTURE(isa_name(isa));
+    int64_t hits = 0, touching = 0;
+    for (const std::array<double, 6>& box : queries) {
+      const double* lo = &box[0];
+      const double* hi = &box[3];
+      for (size_t l = 0; l < sizes.size(); ++l)
+        for (int32_t from = 0; from <= sizes[l]; ++from) {
+          std::vector<int32_t> expected;
+          for (int32_t i = from; i < sizes[l]; ++i)
+            if (boxes_overlap(lower[l].data(), upper[l].data(), i, lo, hi, 0)) {
+              expected.push_back(1000 * static_cast<int32_t>(l) + i);
+              for (int d = 0; d < 3; ++d)
+                touching += lower[l][3 * i + d] == hi[d] || upper[l][3 * i + d] == lo[d];
+            }
+          const int32_t n = lists.scan(static_cast<int32_t>(l), from, lo, hi, found.data());
+          REQUIRE(std::vector<int32_t>(found.begin(), found.begin() + n) == expected);
+          hits += n;
+        }
+    }
+    CHECK(hits > 1000);
+    CHECK(touching > 100);
+  }
+  set_active_isa(restore);
+}
+
+TEST_CASE("contact candidates are the same on every instruction-set path") {
+  const Scene scene = many_bodies();
+  const Model& model = scene.model;
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 3);
+  const std::vector<double> x1 = moved(model, x0, 4);
+  const Isa restore = active_isa();
+  set_active_isa(Isa::scalar);
+  ContactCandidates reference;
+  find_contact_candidates(model, x0.data(), x1.data(), 0.005, reference);
+  CHECK(reference.size() > 1000);
+  for (Isa isa : kAllIsas) {
+    if (static_cast<int>(isa) > static_cast<int>(detected_isa())) continue;
+    CAPTURE(isa_name(isa));
+    set_active_isa(isa);
+    ContactCandidates c;
+    find_contact_candidates(model, x0.data(), x1.data(), 0.005, c);
+    CHECK(c.vertex_triangle == reference.vertex_triangle);
+    CHECK(c.edge_edge == reference.edge_edge);
+    CHECK(c.vertex_plane == reference.vertex_plane);
+  }
+  set_active_isa(restore);
 }
 
 // ---- searches of a few moving bodies (the island solver's CCD sweep, solver/newton.cpp) ---------
