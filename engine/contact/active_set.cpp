@@ -194,6 +194,7 @@ void ContactActiveSet::list_unique_and_features(const ContactCandidates& c) {
   kind_.resize(num_unique);
   vertices_.resize(4 * num_unique);
   multiplicity_.resize(num_unique);
+  edge_edge_case_.resize(num_unique);
   features_.resize(chunk_feature_begin_[chunks]);
   parallel_for(chunks, [&](int64_t cb, int64_t ce) {
     for (int64_t k = cb; k < ce; ++k) {
@@ -206,6 +207,7 @@ void ContactActiveSet::list_unique_and_features(const ContactCandidates& c) {
           kind_[unique] = ContactStencilKind::vertex_plane;
           int32_t* v = &vertices_[4 * unique];
           v[0] = pair.first; v[1] = pair.second; v[2] = v[3] = -1;
+          edge_edge_case_[unique] = 0;
           multiplicity_[unique++] = 1;
           continue;
         }
@@ -222,6 +224,7 @@ void ContactActiveSet::list_unique_and_features(const ContactCandidates& c) {
                                 : ((code & kMollifiedCode) ? ContactStencilKind::edge_edge_mollified
                                                            : ContactStencilKind::edge_edge);
         std::copy(s, s + 4, &vertices_[4 * unique]);
+        edge_edge_case_[unique] = i < nvt ? 0 : static_cast<uint8_t>((code & ~kMollifiedCode) - 1);
         multiplicity_[unique++] = 1;
       }
     }
@@ -261,6 +264,7 @@ void ContactActiveSet::merge_features() {
   kind_.resize(num_stencils);
   vertices_.resize(4 * num_stencils);
   multiplicity_.resize(num_stencils);
+  edge_edge_case_.resize(num_stencils);
   parallel_for(nv, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
       int64_t out = vertex_stencil_begin_[v] - 1;
@@ -272,6 +276,7 @@ void ContactActiveSet::merge_features() {
         }
         ++out;
         kind_[out] = f.c < 0 ? ContactStencilKind::point_point : ContactStencilKind::point_edge;
+        edge_edge_case_[out] = 0;
         int32_t* s = &vertices_[4 * out];
         s[0] = f.a; s[1] = f.b; s[2] = f.c; s[3] = -1;
         multiplicity_[out] = 1;

@@ -66,6 +66,9 @@ class ContactActiveSet {
   // (num_stencils x 4) real vertex ids, held ones included; vertex-plane: v, plane index.
   const std::vector<int32_t>& vertices() const { return vertices_; }
   const std::vector<int32_t>& multiplicities() const { return multiplicity_; }  // (num_stencils)
+  // (num_stencils) The closest-feature case (EdgeEdgeCase) of each edge-edge stencil at the x of
+  // the build, which the mollified kernel would otherwise classify again; 0 for other kinds.
+  const std::vector<uint8_t>& edge_edge_cases() const { return edge_edge_case_; }
   const std::vector<int32_t>& stencils() const { return stencils_; }            // (num_stencils x 4)
   const std::vector<int64_t>& slab_begin() const { return slab_begin_; }        // (num_stencils + 1)
 
@@ -107,6 +110,7 @@ class ContactActiveSet {
   std::vector<ContactStencilKind> kind_;  // (num_stencils)
   std::vector<int32_t> vertices_;         // (num_stencils x 4) real vertex ids; vertex-plane: v, plane
   std::vector<int32_t> multiplicity_;     // (num_stencils) active pairs merged into the stencil
+  std::vector<uint8_t> edge_edge_case_;   // (num_stencils) EdgeEdgeCase of edge-edge stencils
   std::vector<int32_t> stencils_;         // (num_stencils x 4) vertex ids, -1 = absent or held
   std::vector<int64_t> slab_begin_;       // (num_stencils + 1) prefix of (3n)^2
 };

@@ -242,9 +242,10 @@ double BarrierPotential::active_set_energy(const double* x) const {
 namespace {
 
 // The derivatives of weight * b of one stencil (vertex ids s, real ones) at x: its gradient into
-// grad (3n) and, with hess, its projected Hessian into hess (3n x 3n, column-major).
-void stencil_derivatives(const Model& m, ContactStencilKind kind, const int32_t* s, const double* x, double dhat2,
-                         double weight, double* grad, double* hess) {
+// grad (3n) and, with hess, its projected Hessian into hess (3n x 3n, column-major). edge_case:
+// the closest-feature case of an edge-edge stencil, as the active set classified it at this x.
+void stencil_derivatives(const Model& m, ContactStencilKind kind, EdgeEdgeCase edge_case, const int32_t* s,
+                         const double* x, double dhat2, double weight, double* grad, double* hess) {
   using Kind = ContactStencilKind;
   using Eigen::Map;
   switch (kind) {
@@ -287,9 +288,10 @@ void stencil_derivatives(const Model& m, ContactStencilKind kind, const int32_t*
       // Nearly parallel: product rule on m(x) b(d(x)) over all 12 DOFs.
       const double eps_x = edge_edge_threshold(m, &s[0], &s[2]);
       if (hess)
-        mollified_edge_edge_barrier_gradient_hessian(X0, X1, X2, X3, eps_x, dhat2, weight, g, Map<Matrix12d>(hess));
+        mollified_edge_edge_barrier_gradient_hessian(X0, X1, X2, X3, edge_case, eps_x, dhat2, weight, g,
+                                                     Map<Matrix12d>(hess));
       else
-        g = mollified_edge_edge_barrier_gradient(X0, X1, X2, X3, eps_x, dhat2, weight);
+        g = mollified_edge_edge_barrier_gradient(X0, X1, X2, X3, edge_case, eps_x, dhat2, weight);
       return;
     }
     default: return;
@@ -305,6 +307,7 @@ void BarrierPotential::compute_derivatives(const double* x, double weight, bool 
   const std::vector<int32_t>& vertices = active_.vertices();
   const std::vector<int32_t>& stencils = active_.stencils();
   const std::vector<int32_t>& multiplicity = active_.multiplicities();
+  const std::vector<uint8_t>& edge_cases = active_.edge_edge_cases();
   const std::vector<int64_t>& slab_begin = active_.slab_begin();
   gradients_.resize(12 * ns);
   if (with_hessian) hessians_.resize(slab_begin[ns]);
@@ -316,23 +319,38 @@ void BarrierPotential::compute_derivatives(const double* x, double weight, bool 
         continue;
       }
       double* hess = with_hessian ? &hessians_[slab_begin[k]] : nullptr;
-      stencil_derivatives(model_, kinds[k], &vertices[4 * k], x, dhat2_, weight * multiplicity[k], grad, hess);
+      stencil_derivatives(model_, kinds[k], static_cast<EdgeEdgeCase>(edge_cases[k]), &vertices[4 * k], x, dhat2_,
+                          weight * multiplicity[k], grad, hess);
     }
   }, 256);
 }
 
 void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vector<double>& gradients,
-                           double* grad) {
+                           int64_t num_vertices, double* grad) {
   const int64_t num = static_cast<int64_t>(stencils.size() / 4);
-  for (int64_t k = 0; k < num; ++k)
-    for (int i = 0; i < 4; ++i) {
-      const int32_t v = stencils[4 * k + i];
-      if (v < 0) continue;
-      for (int r = 0; r < 3; ++r) grad[3 * int64_t{v} + r] += gradients[12 * k + 3 * i + r];
+  // One part per thread, each owning a range of vertex ids: every part reads all the stencils'
+  // ids but adds only to its own vertices, so no two threads write one entry and each vertex's
+  // sum runs in stencil order, as in one serial loop, whatever the number of parts.
+  const int64_t parts =
+      num < 4096 ? 1
+                 : std::max<int64_t>(1, static_cast<int64_t>(tbb::global_control::active_value(
+                                            tbb::global_control::max_allowed_parallelism)));
+  parallel_for(parts, [&](int64_t part_begin, int64_t part_end) {
+    for (int64_t part = part_begin; part < part_end; ++part) {
+      const int64_t first = num_vertices * part / parts, count = num_vertices * (part + 1) / parts - first;
+      for (int64_t k = 0; k < num; ++k)
+        for (int i = 0; i < 4; ++i) {
+          const int64_t v = stencils[4 * k + i];  // -1 (absent) falls outside every range
+          if (static_cast<uint64_t>(v - first) >= static_cast<uint64_t>(count)) continue;
+          for (int r = 0; r < 3; ++r) grad[3 * v + r] += gradients[12 * k + 3 * i + r];
+        }
     }
+  }, 1);
 }
 
-void BarrierPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils(), gradients_, grad); }
+void BarrierPotential::add_gradient(double* grad) const {
+  add_stencil_gradients(stencils(), gradients_, model_.num_vertices, grad);
+}
 
 void BarrierPotential::add_gradient_with_held(double* grad) const {
   // stencil_vertices() holds the real ids; a vertex-plane stencil's second entry is the plane's index.

@@ -44,10 +44,11 @@ namespace nexdyn {
 double bodies_bbox_diagonal(const Model& model);
 
 // grad += the per-stencil gradients (num x 12, padded to 4 vertices) at their stencils' vertices
-// (num x 4; -1 = absent or eliminated, skipped), in stencil order: serial, so the sums do not
-// depend on the number of threads. Shared by the barrier and friction potentials.
+// (num x 4, ids below num_vertices; -1 = absent or eliminated, skipped). Each vertex's entries
+// are summed in stencil order on any number of threads (threads own ranges of vertices), so the
+// sums do not depend on it. Shared by the barrier and friction potentials.
 void add_stencil_gradients(const std::vector<int32_t>& stencils, const std::vector<double>& gradients,
-                           double* grad);
+                           int64_t num_vertices, double* grad);
 
 class BarrierPotential {
  public:

@@ -251,10 +251,12 @@ void FrictionPotential::compute_derivatives(const double* x, double weight, bool
   }, 256);
 }
 
-void FrictionPotential::add_gradient(double* grad) const { add_stencil_gradients(stencils_, gradients_, grad); }
+void FrictionPotential::add_gradient(double* grad) const {
+  add_stencil_gradients(stencils_, gradients_, model_.num_vertices, grad);
+}
 
 void FrictionPotential::add_gradient_with_held(double* grad) const {
-  add_stencil_gradients(vertices_, gradients_, grad);
+  add_stencil_gradients(vertices_, gradients_, model_.num_vertices, grad);
 }
 
 }  // namespace nexdyn

@@ -109,9 +109,8 @@ Mollifier mollifier(const Eigen::Vector3d (&X)[4], double eps_x, Matrix12d* hess
 }
 
 // The mollified stencil's gradient and, with `hessian`, its projected Hessian.
-void mollified_derivatives(const Eigen::Vector3d (&X)[4], double eps_x, double dhat2, double w, Vector12d& gradient,
-                           Matrix12d* hessian) {
-  const EdgeEdgeCase ec = edge_edge_case(X[0], X[1], X[2], X[3]);
+void mollified_derivatives(const Eigen::Vector3d (&X)[4], EdgeEdgeCase ec, double eps_x, double dhat2, double w,
+                           Vector12d& gradient, Matrix12d* hessian) {
   const double d = edge_edge_distance(X[0], X[1], X[2], X[3], ec);
   Vector12d gd;
   Matrix12d Hd, Hm;
@@ -149,9 +148,16 @@ void project_psd_translation_free(Matrix12d& H) {
 Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
                                                const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, double eps_x,
                                                double dhat2, double weight) {
+  return mollified_edge_edge_barrier_gradient(ea0, ea1, eb0, eb1, edge_edge_case(ea0, ea1, eb0, eb1), eps_x, dhat2,
+                                              weight);
+}
+
+Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
+                                               const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, EdgeEdgeCase ec,
+                                               double eps_x, double dhat2, double weight) {
   const Eigen::Vector3d X[4] = {ea0, ea1, eb0, eb1};
   Vector12d gradient;
-  mollified_derivatives(X, eps_x, dhat2, weight, gradient, nullptr);
+  mollified_derivatives(X, ec, eps_x, dhat2, weight, gradient, nullptr);
   return gradient;
 }
 
@@ -159,10 +165,19 @@ void mollified_edge_edge_barrier_gradient_hessian(const Eigen::Vector3d& ea0, co
                                                   const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, double eps_x,
                                                   double dhat2, double weight, Eigen::Ref<Vector12d> gradient,
                                                   Eigen::Ref<Matrix12d> projected_hessian) {
+  mollified_edge_edge_barrier_gradient_hessian(ea0, ea1, eb0, eb1, edge_edge_case(ea0, ea1, eb0, eb1), eps_x, dhat2,
+                                               weight, gradient, projected_hessian);
+}
+
+void mollified_edge_edge_barrier_gradient_hessian(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
+                                                  const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1,
+                                                  EdgeEdgeCase ec, double eps_x, double dhat2, double weight,
+                                                  Eigen::Ref<Vector12d> gradient,
+                                                  Eigen::Ref<Matrix12d> projected_hessian) {
   const Eigen::Vector3d X[4] = {ea0, ea1, eb0, eb1};
   Vector12d g;
   Matrix12d H;
-  mollified_derivatives(X, eps_x, dhat2, weight, g, &H);
+  mollified_derivatives(X, ec, eps_x, dhat2, weight, g, &H);
   gradient = g;
   projected_hessian = H;
 }
