@@ -88,17 +88,11 @@ CcdQuerySet read_ccd_queries(const std::filesystem::path& file) {
 
 bool ccd_query_collides(CcdQueryKind kind, const double* q) {
   Eigen::Vector3d x[8];
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
-  for (int i = 0; i < 8; ++i) {
-    x[i] = Eigen::Vector3d(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
-    lo = lo.cwiseMin(x[i]);
-    hi = hi.cwiseMax(x[i]);
-  }
-  const double min_distance = kCcdQueryRelativeGap * (hi - lo).norm();
+  for (int i = 0; i < 8; ++i) x[i] = Eigen::Vector3d(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
   double toi = 1.0;
   if (kind == CcdQueryKind::vertex_face)
-    return point_triangle_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], min_distance, 1.0, toi);
-  return edge_edge_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], min_distance, 1.0, toi);
+    return point_triangle_touch_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], 1.0, toi);
+  return edge_edge_touch_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], 1.0, toi);
 }
 
 CcdQueryStats run_ccd_queries(const CcdQuerySet& queries) {

@@ -31,7 +31,9 @@ const char* kGoodLine =
 
 }  // namespace
 
-TEST_CASE("ccd: zero false negatives and few false positives on the shipped query files") {
+TEST_CASE("ccd: zero false negatives, and no more false positives than Tight-Inclusion, on the shipped query files") {
+  // Tight-Inclusion (Wang et al. 2021, tolerance 1e-6, no minimum distance) reports 23 false
+  // positives on vertex-face.txt and 46 on edge-edge.txt (issue 20).
   for (const char* name : {"vertex-face.txt", "edge-edge.txt"}) {
     const CcdQuerySet set = read_ccd_queries(shipped(name));
     const CcdQueryStats stats = run_ccd_queries(set);
@@ -42,7 +44,7 @@ TEST_CASE("ccd: zero false negatives and few false positives on the shipped quer
     const double fp_rate = double(stats.false_positives) / double(stats.queries);
     MESSAGE(name << ": false positives " << stats.false_positives << " of " << stats.queries << " ("
                  << 100.0 * fp_rate << "%), " << stats.queries / stats.seconds << " queries/s");
-    CHECK(fp_rate <= 0.05);
+    CHECK(stats.false_positives <= (std::string(name) == "vertex-face.txt" ? 23 : 46));
   }
 }
 

@@ -359,6 +359,66 @@ TEST_CASE("ccd: a miss by a hair is no collision when the hair exceeds the gap")
   CHECK_FALSE(edge_edge_ccd(e0, e1, f0, f1, e0, e1, f0 + down, f1 + down, 0.0, 1.0, toi));
 }
 
+TEST_CASE("touch ccd: a miss by 1e-16 of a size-1 query is told apart from a touch") {
+  // A point falls past the corner a of a triangle (edge ab on the x axis, sizes about 1), once
+  // 1e-16 outside it on x and z (a miss: the distance never goes below 1.4e-16) and once exactly
+  // through it (a touch at t = 0.07 / 0.3). The double CCD's rounding slack (64 eps at scale 1,
+  // 1.4e-14) cannot tell them apart and reports both; the touch CCD's long-double pass can.
+  const Vector3d a(0, 0.5, 0), b(1, 0.5, 0), c(1.25, -0.5, -0.25);
+  const double miss = 1e-16;
+  for (const bool touching : {false, true}) {
+    CAPTURE(touching);
+    const double off = touching ? 0.0 : -miss;
+    const Vector3d p0(off, 0.57, -off), p1(off, 0.27, -off);
+    double toi = -1.0;
+    CHECK(point_triangle_ccd(p0, a, b, c, p1, a, b, c, 0.0, 1.0, toi));
+    toi = -1.0;
+    CHECK(point_triangle_touch_ccd(p0, a, b, c, p1, a, b, c, 1.0, toi) == touching);
+    if (touching) {
+      CHECK(toi > 0.2);
+      CHECK(toi <= 0.07 / 0.3);
+    }
+  }
+  // Edges: one sweeps across the endpoint of the other, 1e-16 beyond it or exactly through it.
+  const Vector3d e0(0, 0.5, 0), e1(1, 0.5, 0);
+  for (const bool touching : {false, true}) {
+    CAPTURE(touching);
+    const double off = touching ? 0.0 : -miss;
+    const Vector3d f0(off, 0.57, -1), f1(off, 0.57, 1), down(0, -0.3, 0);
+    double toi = -1.0;
+    CHECK(edge_edge_ccd(e0, e1, f0, f1, e0, e1, f0 + down, f1 + down, 0.0, 1.0, toi));
+    toi = -1.0;
+    CHECK(edge_edge_touch_ccd(e0, e1, f0, f1, e0, e1, f0 + down, f1 + down, 1.0, toi) == touching);
+    if (touching) CHECK(toi <= 0.07 / 0.3);
+  }
+}
+
+TEST_CASE("touch ccd: agrees with the double CCD where that one is certain") {
+  // Random motions of size 1 that clearly miss (the double CCD finds no distance below 1e-3) or
+  // hit (it reports a possible touch with gap 0, which on such inputs means a touch within its
+  // 1e-14 slack): the touch CCD gives the same verdicts.
+  std::mt19937 rng(20);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int hits = 0, misses = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    Vector3d x[8];
+    for (Vector3d& v : x) v = Vector3d(u(rng), u(rng), u(rng));
+    double toi = 0.0, touch_toi = 0.0;
+    const bool sure_hit = point_triangle_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], 0.0, 1.0, toi);
+    const bool sure_miss = !point_triangle_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], 1e-3, 1.0, toi);
+    const bool touch = point_triangle_touch_ccd(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], 1.0, touch_toi);
+    if (sure_miss) {
+      CHECK_FALSE(touch);
+      ++misses;
+    } else if (sure_hit) {
+      CHECK(touch);
+      ++hits;
+    }
+  }
+  CHECK(misses > 100);
+  CHECK(hits > 20);
+}
+
 TEST_CASE("ccd: a point falling onto a plane") {
   double toi = -1.0;
   const Vector3d q(0, 1, 0), n(0, 1, 0);
