@@ -116,11 +116,9 @@ void mollified_derivatives(const Eigen::Vector3d (&X)[4], EdgeEdgeCase ec, doubl
   Matrix12d Hd, Hm;
   edge_edge_feature_derivatives(closest_feature(ec), X, gd, hessian ? &Hd : nullptr);
   const Mollifier m = mollifier(X, eps_x, hessian ? &Hm : nullptr);
-  const double b = barrier(d, dhat2);
-  const double b1 = barrier_first_derivative(d, dhat2);
+  const auto [b, b1, b2] = barrier_values(d, dhat2);  // one log for the three
   gradient = w * (m.m * b1 * gd + b * m.gradient);
   if (!hessian) return;
-  const double b2 = barrier_second_derivative(d, dhat2);
   const Vector12d& gm = m.gradient;
   Matrix12d H = m.m * (b2 * gd * gd.transpose() + b1 * Hd) + b1 * (gd * gm.transpose() + gm * gd.transpose()) + b * Hm;
   H *= w;
