@@ -96,8 +96,8 @@ constexpr int kTouchRefineIterations = 1000;
 
 template <int NumA, typename Distance>
 bool touch_ccd(const Points& x0, const Points& x1, double tmax, double& toi, Distance&& distance) {
-  Eigen::Vector3d lo = x0.rowwise().minCoeff().cwiseMin(x1.rowwise().minCoeff());
-  Eigen::Vector3d hi = x0.rowwise().maxCoeff().cwiseMax(x1.rowwise().maxCoeff());
+  const Eigen::Vector3d lo = x0.rowwise().minCoeff().cwiseMin(x1.rowwise().minCoeff());
+  const Eigen::Vector3d hi = x0.rowwise().maxCoeff().cwiseMax(x1.rowwise().maxCoeff());
   double t_first = 0.0;
   if (!additive_ccd<NumA, double>(x0, x1, kTouchFirstGap * (hi - lo).norm(), 0.0, tmax, kCcdMaxIterations, t_first,
                                   distance))
@@ -111,6 +111,13 @@ bool touch_ccd(const Points& x0, const Points& x1, double tmax, double& toi, Dis
     if (static_cast<Long>(toi) > t_long) toi = std::nextafter(toi, 0.0);
   }
   return touch;
+}
+
+// The 4 points of a query at one time, as the columns of a Points.
+Points columns(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  Points x;
+  x << a, b, c, d;
+  return x;
 }
 
 // The distance lower bounds, for any precision.
@@ -133,38 +140,29 @@ bool point_triangle_ccd(const Eigen::Vector3d& p_0, const Eigen::Vector3d& t0_0,
                         const Eigen::Vector3d& t2_0, const Eigen::Vector3d& p_1, const Eigen::Vector3d& t0_1,
                         const Eigen::Vector3d& t1_1, const Eigen::Vector3d& t2_1, double min_distance,
                         double tmax, double& toi) {
-  Points x0, x1;
-  x0 << p_0, t0_0, t1_0, t2_0;
-  x1 << p_1, t0_1, t1_1, t2_1;
-  return additive_ccd<1>(x0, x1, min_distance, tmax, toi, PointTriangleLower{});
+  return additive_ccd<1>(columns(p_0, t0_0, t1_0, t2_0), columns(p_1, t0_1, t1_1, t2_1), min_distance, tmax, toi,
+                         PointTriangleLower{});
 }
 
 bool edge_edge_ccd(const Eigen::Vector3d& ea0_0, const Eigen::Vector3d& ea1_0, const Eigen::Vector3d& eb0_0,
                    const Eigen::Vector3d& eb1_0, const Eigen::Vector3d& ea0_1, const Eigen::Vector3d& ea1_1,
                    const Eigen::Vector3d& eb0_1, const Eigen::Vector3d& eb1_1, double min_distance, double tmax,
                    double& toi) {
-  Points x0, x1;
-  x0 << ea0_0, ea1_0, eb0_0, eb1_0;
-  x1 << ea0_1, ea1_1, eb0_1, eb1_1;
-  return additive_ccd<2>(x0, x1, min_distance, tmax, toi, EdgeEdgeLower{});
+  return additive_ccd<2>(columns(ea0_0, ea1_0, eb0_0, eb1_0), columns(ea0_1, ea1_1, eb0_1, eb1_1), min_distance, tmax,
+                         toi, EdgeEdgeLower{});
 }
 
 bool point_triangle_touch_ccd(const Eigen::Vector3d& p_0, const Eigen::Vector3d& t0_0, const Eigen::Vector3d& t1_0,
                               const Eigen::Vector3d& t2_0, const Eigen::Vector3d& p_1, const Eigen::Vector3d& t0_1,
                               const Eigen::Vector3d& t1_1, const Eigen::Vector3d& t2_1, double tmax, double& toi) {
-  Points x0, x1;
-  x0 << p_0, t0_0, t1_0, t2_0;
-  x1 << p_1, t0_1, t1_1, t2_1;
-  return touch_ccd<1>(x0, x1, tmax, toi, PointTriangleLower{});
+  return touch_ccd<1>(columns(p_0, t0_0, t1_0, t2_0), columns(p_1, t0_1, t1_1, t2_1), tmax, toi, PointTriangleLower{});
 }
 
 bool edge_edge_touch_ccd(const Eigen::Vector3d& ea0_0, const Eigen::Vector3d& ea1_0, const Eigen::Vector3d& eb0_0,
                          const Eigen::Vector3d& eb1_0, const Eigen::Vector3d& ea0_1, const Eigen::Vector3d& ea1_1,
                          const Eigen::Vector3d& eb0_1, const Eigen::Vector3d& eb1_1, double tmax, double& toi) {
-  Points x0, x1;
-  x0 << ea0_0, ea1_0, eb0_0, eb1_0;
-  x1 << ea0_1, ea1_1, eb0_1, eb1_1;
-  return touch_ccd<2>(x0, x1, tmax, toi, EdgeEdgeLower{});
+  return touch_ccd<2>(columns(ea0_0, ea1_0, eb0_0, eb1_0), columns(ea0_1, ea1_1, eb0_1, eb1_1), tmax, toi,
+                      EdgeEdgeLower{});
 }
 
 bool point_plane_ccd(const Eigen::Vector3d& p_0, const Eigen::Vector3d& p_1, const Eigen::Vector3d& plane_point,

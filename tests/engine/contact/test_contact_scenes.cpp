@@ -441,19 +441,20 @@ TEST_CASE("scene stress/pile_10: every instruction-set path gives bitwise equal 
 TEST_CASE("NEXDYN_ISA: a value that names no path is an error naming it, before any output") {
   const fs::path out = test::temp_dir("bad_isa");
   fs::remove_all(out);
-  setenv("NEXDYN_ISA", "avx3", 1);
-  const test::CommandResult r =
-      test::run_cli("run " + test::scene_path("head_on.json").string() + " --steps 2 --quiet --out " + out.string());
-  unsetenv("NEXDYN_ISA");
+  auto run_with = [&](const char* isa) {
+    setenv("NEXDYN_ISA", isa, 1);
+    const test::CommandResult r =
+        test::run_cli("run " + test::scene_path("head_on.json").string() + " --steps 2 --quiet --out " + out.string());
+    unsetenv("NEXDYN_ISA");
+    return r;
+  };
+  const test::CommandResult r = run_with("avx3");
   CHECK(r.exit_code != 0);
   CHECK(r.output.find("NEXDYN_ISA=avx3") != std::string::npos);
   CHECK(r.output.find("scalar, avx2, avx512") != std::string::npos);
   CHECK(!fs::exists(out));
   if (detected_isa() != Isa::avx512) {  // asking for more than the CPU has
-    setenv("NEXDYN_ISA", "avx512", 1);
-    const test::CommandResult wide =
-        test::run_cli("run " + test::scene_path("head_on.json").string() + " --steps 2 --quiet --out " + out.string());
-    unsetenv("NEXDYN_ISA");
+    const test::CommandResult wide = run_with("avx512");
     CHECK(wide.exit_code != 0);
     CHECK(wide.output.find("this CPU runs at most") != std::string::npos);
   }
