@@ -3,6 +3,7 @@
 
 #include "engine/output/checkpoint_file.hpp"
 #include "engine/output/frame_writer.hpp"
+#include "engine/render/view_file.hpp"
 
 #include <unistd.h>
 
@@ -499,6 +500,8 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   remove_old_frames(frames_dir);
   remove_checkpoints(out);
   fs::remove(out / "scene.pvd", ec);
+  // What `nexdyn render` needs beside the frames (engine/render/view_file.hpp).
+  write_file_atomically(out / "view.json", view_document(scene_view(scene)));
 
   RunRecord record;
   record.scene_file = fs::absolute(scene.file);

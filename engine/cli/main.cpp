@@ -4,8 +4,12 @@
 //   nexdyn resume DIR [--threads K] [--quiet]
 //   nexdyn check SCENE.json
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
+//   nexdyn render DIR [--frame N|--all] [--out PNGDIR] [--size WxH] [--camera EX,EY,EZ,TX,TY,TZ[,FOV]]
+//                 [--color body|speed] [--video OUT.mp4 [--fps F]] [--threads K]
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
 #include "engine/ccd_queries.hpp"
+#include "engine/render/render_command.hpp"
+#include "engine/render/view_file.hpp"
 #include "engine/run.hpp"
 #include "engine/scene/scene.hpp"
 #include "kernels/isa.hpp"
@@ -58,7 +62,12 @@ struct CliArgs {
   int threads = 0;
   bool quiet = false;
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
-  CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr;
+  CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr, *render = nullptr;
+  // nexdyn render
+  std::string render_dir, render_out, render_size = "1280x720", render_camera, render_color = "body", video;
+  int64_t render_frame = -1;
+  bool render_all = false;
+  double fps = 0.0;
 };
 
 void define_cli(CLI::App& app, CliArgs& a) {
@@ -87,6 +96,45 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.check->add_option("scene", a.check_path, "Scene JSON file")->required();
   a.ccd = app.add_subcommand("ccd", "Run the narrow-phase CCD over a query file and print one line");
   a.ccd->add_option("queries", a.ccd_path, "CCD query file (data/ccd/README.txt)")->required();
+  a.render = app.add_subcommand("render", "Ray-trace PNG pictures of a run's frames (and a video with ffmpeg)");
+  a.render->add_option("dir", a.render_dir, "The run's output folder")->required();
+  a.render->add_option("--frame", a.render_frame, "Frame number N of frames/frame_N.vtu (default: the last)")
+      ->check(CLI::NonNegativeNumber);
+  a.render->add_flag("--all", a.render_all, "Every frame, in parallel");
+  a.render->add_option("--out", a.render_out, "Folder of the pictures (default DIR/render)");
+  a.render->add_option("--size", a.render_size, "Picture size WxH in pixels (default 1280x720)");
+  a.render->add_option("--camera", a.render_camera, "EX,EY,EZ,TX,TY,TZ[,FOV]: eye, target, vertical field of view "
+                       "[deg] (default: the scene's output.camera, else fitted to the bodies)");
+  a.render->add_option("--color", a.render_color, "Colour bodies by \"body\" or by \"speed\" (default body)")
+      ->check(CLI::IsMember({"body", "speed"}));
+  a.render->add_option("--video", a.video, "With --all: also an .mp4 of the pictures (needs ffmpeg)");
+  a.render->add_option("--fps", a.fps, "Frames per second of the video (default: from the frames' times)");
+  a.render->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+}
+
+int run_render(const CliArgs& a) {
+  RenderOptions o;
+  o.run_dir = a.render_dir;
+  o.out_dir = a.render_out;
+  if (a.render_frame >= 0) o.frame = a.render_frame;
+  o.all = a.render_all;
+  char x = 0;
+  int consumed = 0;
+  if (std::sscanf(a.render_size.c_str(), "%d%c%d%n", &o.width, &x, &o.height, &consumed) != 3 || x != 'x' ||
+      consumed != static_cast<int>(a.render_size.size()))
+    throw std::runtime_error("--size expects WxH, for example 1920x1080, not \"" + a.render_size + "\"");
+  if (!a.render_camera.empty()) o.camera = parse_camera(a.render_camera, read_view(o.run_dir).up);
+  o.color = a.render_color == "speed" ? ColorBy::value : ColorBy::body;
+  o.video = a.video;
+  o.fps = a.fps;
+  const std::vector<std::filesystem::path> written = render_run(o);
+  if (written.size() <= 3)
+    for (const auto& file : written) std::printf("%s\n", file.string().c_str());
+  else
+    std::printf("%zu pictures in %s\n", written.size() - (o.video.empty() ? 0 : 1),
+                written.front().parent_path().string().c_str());
+  if (written.size() > 3 && !o.video.empty()) std::printf("%s\n", o.video.string().c_str());
+  return 0;
 }
 
 int run_ccd(const CliArgs& a) {
@@ -174,6 +222,7 @@ int main(int argc, char** argv) {
     active_isa();  // a bad NEXDYN_ISA is an error here, before any output is written
     if (*a.ccd) return run_ccd(a);
     if (*a.check) return run_check(a);
+    if (*a.render) return run_render(a);
     std::filesystem::path out;
     const RunSummary summary = run_or_resume(a, out);
     return report(summary, out, a.quiet);

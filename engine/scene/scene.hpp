@@ -16,6 +16,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,11 +72,21 @@ struct ContactSettings {
   }
 };
 
+// Where `nexdyn render` looks from ("output.camera"); without it the camera is fitted to the
+// bodies' bounds.
+struct CameraSettings {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // [m]
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();    // [m], the point at the picture's centre
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();        // zero: against gravity (+y without gravity)
+  double fov_deg = 40.0;                               // vertical field of view
+};
+
 struct OutputSettings {
   int64_t every = 1;  // write a frame every this many steps
   int64_t checkpoint_every = 100;  // write a checkpoint every this many steps (0: only on a signal)
   bool vtu = true;
   bool obj = false;
+  std::optional<CameraSettings> camera;
 };
 
 struct Scene {

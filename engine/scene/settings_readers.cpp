@@ -1,6 +1,7 @@
 // Readers of the settings objects of a scene file (see settings_readers.hpp).
 #include "engine/scene/settings_readers.hpp"
 
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include <limits>
@@ -155,8 +156,29 @@ void read_contact(const json& j, const Where& w, ContactSettings& contact) {
   }
 }
 
+// "output.camera": position and target required, up and fov_deg optional.
+CameraSettings read_camera(const json& j, const Where& w) {
+  check_keys(j, w, {"position", "target", "up", "fov_deg"});
+  if (!j.contains("position") || !j.contains("target")) w.fail("needs \"position\" and \"target\"");
+  CameraSettings camera;
+  camera.position = vec3(j["position"], w["position"]);
+  camera.target = vec3(j["target"], w["target"]);
+  if ((camera.target - camera.position).norm() == 0.0) w["target"].fail("equals \"position\"", j["target"]);
+  if (j.contains("up")) {
+    camera.up = vec3(j["up"], w["up"]);
+    if (camera.up.norm() == 0.0 || camera.up.cross(camera.target - camera.position).norm() == 0.0)
+      w["up"].fail("must be non-zero and not along the view direction", j["up"]);
+  }
+  if (j.contains("fov_deg")) {
+    camera.fov_deg = positive(j["fov_deg"], w["fov_deg"]);
+    if (camera.fov_deg >= 170.0) w["fov_deg"].fail("expected a field of view below 170 degrees", j["fov_deg"]);
+  }
+  return camera;
+}
+
 void read_output(const json& j, const Where& w, OutputSettings& output) {
-  check_keys(j, w, {"every", "formats", "checkpoint_every"});
+  check_keys(j, w, {"every", "formats", "checkpoint_every", "camera"});
+  if (j.contains("camera")) output.camera = read_camera(j["camera"], w["camera"]);
   if (j.contains("every")) output.every = integer(j["every"], w["every"], 1);
   if (j.contains("checkpoint_every"))
     output.checkpoint_every = integer(j["checkpoint_every"], w["checkpoint_every"], 0);
