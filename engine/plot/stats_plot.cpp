@@ -195,7 +195,10 @@ class DataBlock {
     std::string s = name_ + " << EOD\n";
     const size_t rows = columns_.empty() ? 0 : columns_.front().size();
     for (size_t r = 0; r < rows; ++r) {
-      for (size_t c = 0; c < columns_.size(); ++c) s += (c ? " " : "") + number(columns_[c][r]);
+      for (size_t c = 0; c < columns_.size(); ++c) {
+        if (c > 0) s += ' ';
+        s += number(columns_[c][r]);
+      }
       s += '\n';
     }
     return s + "EOD\n";
@@ -296,7 +299,7 @@ Chart energy_balance_chart(StatsCharts& s, const char* const (&names)[4]) {
       curve(s.data, s.time, s.data.add(balance), s.drawn(2, "#ff7f0e") + " dt 2", "balance terms")};
   for (size_t t = 0; t < 4; ++t)
     curves.push_back(curve(s.data, s.time, s.data.add(sums[t]), s.drawn(2, colors[t]) + " dt 3",
-                           (signs[t] < 0 ? "-" : "") + std::string(names[t])));
+                           std::string(signs[t] < 0 ? "-" : "") + names[t]));
   curves.push_back(curve(s.data, s.time, s.data.add(residual), s.drawn(2, "#d62728") + " axes x1y2",
                          "residual (right axis)"));
   const std::string title = "Energy balance: " + s.run + "\nchange of total_energy since the first row = "
@@ -308,11 +311,10 @@ Chart energy_balance_chart(StatsCharts& s, const char* const (&names)[4]) {
 }
 
 Chart momentum_chart(StatsCharts& s) {
-  const char* parts[][3] = {{"momentum_x", "x", "#d62728"}, {"momentum_y", "y", "#2ca02c"},
-                            {"momentum_z", "z", "#1f77b4"}};
+  const char* parts[][2] = {{"momentum_x", "#d62728"}, {"momentum_y", "#2ca02c"}, {"momentum_z", "#1f77b4"}};
   std::vector<std::string> curves;
-  for (const auto& [name, title, color] : parts)
-    curves.push_back(curve(s.data, s.time, s.data.add(s.column(name)), s.drawn(2, color), title));
+  for (const auto& [name, color] : parts)
+    curves.push_back(curve(s.data, s.time, s.data.add(s.column(name)), s.drawn(2, color), name));
   return {"momentum.png",
           labels("time [s]", "momentum [kg m/s]", "Momentum: " + s.run) + plot_command(curves)};
 }
