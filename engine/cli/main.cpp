@@ -6,8 +6,10 @@
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
 //   nexdyn render DIR [--frame N|--all] [--out PNGDIR] [--size WxH] [--camera EX,EY,EZ,TX,TY,TZ[,FOV]]
 //                 [--color body|speed] [--video OUT.mp4 [--fps F]] [--threads K]
+//   nexdyn plot DIR [--out PNGDIR] [--size WxH]   (PNG charts of a run's stats.csv and timings.csv)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
 #include "engine/ccd_queries.hpp"
+#include "engine/plot/stats_plot.hpp"
 #include "engine/render/render_command.hpp"
 #include "engine/render/view_file.hpp"
 #include "engine/run.hpp"
@@ -62,7 +64,10 @@ struct CliArgs {
   int threads = 0;
   bool quiet = false;
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
-  CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr, *render = nullptr;
+  CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr, *render = nullptr,
+           *plot = nullptr;
+  // nexdyn plot
+  std::string plot_dir, plot_out, plot_size = "1200x800";
   // nexdyn render
   std::string render_dir, render_out, render_size = "1280x720", render_camera, render_color = "body", video;
   int64_t render_frame = -1;
@@ -96,6 +101,10 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.check->add_option("scene", a.check_path, "Scene JSON file")->required();
   a.ccd = app.add_subcommand("ccd", "Run the narrow-phase CCD over a query file and print one line");
   a.ccd->add_option("queries", a.ccd_path, "CCD query file (data/ccd/README.txt)")->required();
+  a.plot = app.add_subcommand("plot", "Draw a run's stats.csv and timings.csv as PNG charts (gnuplot)");
+  a.plot->add_option("dir", a.plot_dir, "The run's output folder")->required();
+  a.plot->add_option("--out", a.plot_out, "Folder of the PNGs (default DIR/plots)");
+  a.plot->add_option("--size", a.plot_size, "Width x height of each PNG in pixels (default 1200x800)");
   a.render = app.add_subcommand("render", "Ray-trace PNG pictures of a run's frames (and a video with ffmpeg)");
   a.render->add_option("dir", a.render_dir, "The run's output folder")->required();
   a.render->add_option("--frame", a.render_frame, "Frame number N of frames/frame_N.vtu (default: the last)")
@@ -144,6 +153,20 @@ int run_ccd(const CliArgs& a) {
               static_cast<long long>(s.queries), static_cast<long long>(s.positives),
               static_cast<long long>(s.false_negatives), static_cast<long long>(s.false_positives),
               s.seconds, s.seconds > 0.0 ? double(s.queries) / s.seconds : 0.0);
+  return 0;
+}
+
+// Prints a line if the run is unfinished, then the path of every PNG written.
+int run_plot(const CliArgs& a) {
+  PlotOptions options;
+  options.run_dir = a.plot_dir;
+  options.out_dir = a.plot_out;
+  parse_plot_size(a.plot_size, options.width, options.height);
+  const PlotResult result = plot_run(options);
+  if (result.partial)
+    std::printf("no stats.csv: plotted the %zu rows of %s (the run is under way, was stopped or failed)\n",
+                result.rows, result.stats_file.string().c_str());
+  for (const std::filesystem::path& png : result.pngs) std::printf("%s\n", png.string().c_str());
   return 0;
 }
 
@@ -223,6 +246,7 @@ int main(int argc, char** argv) {
     if (*a.ccd) return run_ccd(a);
     if (*a.check) return run_check(a);
     if (*a.render) return run_render(a);
+    if (*a.plot) return run_plot(a);
     std::filesystem::path out;
     const RunSummary summary = run_or_resume(a, out);
     return report(summary, out, a.quiet);
