@@ -2,7 +2,8 @@
 # One entry point for a fresh Debian 12 machine: installs the missing Debian packages, builds in
 # Release, then does what was asked.
 #   ./build.sh          build only
-#   ./build.sh demo     build, then run the default scene (scenes/cantilever.json)
+#   ./build.sh demo     build, then run the default scene (scenes/cantilever.json), render its last
+#                       frame and plot its stats.csv
 #   ./build.sh test     build, then run the whole test suite with CTest
 #   ./build.sh bench    build, then run the benchmarks (slow; see docs/performance.md)
 #   ./build.sh sanitize build, then the test suite (but its four longest runs) under
@@ -27,7 +28,11 @@ cmake --build "$build_dir" -j "$jobs"
 
 case "${1:-build}" in
   build) ;;
-  demo) "$build_dir/nexdyn" run scenes/cantilever.json ;;
+  demo)
+    "$build_dir/nexdyn" run scenes/cantilever.json
+    "$build_dir/nexdyn" render out/cantilever   # the last frame, ray-traced
+    "$build_dir/nexdyn" plot out/cantilever     # energies, balance, momentum, Newton, timings
+    echo "build.sh: the last frame is in out/cantilever/render/, the plots are in out/cantilever/plots/" ;;
   test) ctest --test-dir "$build_dir" --output-on-failure -j "$jobs" ;;
   bench)
     for b in "$build_dir"/bench/bench_*; do "$b" --benchmark_min_time=0.5; done ;;

@@ -18,8 +18,8 @@ namespace {
 using Vec3f = Eigen::Vector3f;
 
 // Light and material constants of the one shading model. Colours are display values in [0, 1].
-constexpr float kAmbient = 0.30f;           // light everywhere, so faces turned away stay readable
-constexpr float kDiffuse = 0.70f;           // the light's share; kAmbient + kDiffuse = 1 on a lit face
+constexpr float kAmbient = 0.40f;           // light everywhere, so faces turned away stay readable
+constexpr float kDiffuse = 0.60f;           // the light's share; kAmbient + kDiffuse = 1 on a lit face
 constexpr float kShadowOnGround = 0.62f;    // how much light a shadowed grid point keeps
 const Vec3f kSceneryColor(0.62f, 0.63f, 0.66f);
 const Vec3f kGridLight(0.86f, 0.86f, 0.84f), kGridDark(0.79f, 0.79f, 0.77f), kGridLine(0.55f, 0.56f, 0.58f);
@@ -178,11 +178,21 @@ RenderCamera fit_camera(const Eigen::Vector3d& lower, const Eigen::Vector3d& upp
   const double azimuth = 30.0 * M_PI / 180.0, elevation = 25.0 * M_PI / 180.0;
   const Eigen::Vector3d direction = std::cos(elevation) * (std::cos(azimuth) * front + std::sin(azimuth) * side) +
                                     std::sin(elevation) * u;
-  const double half_v = 0.5 * fov_deg * M_PI / 180.0;
-  const double half_min = std::min(half_v, std::atan(std::tan(half_v) * aspect));
+  // The nearest distance at which every corner of the box is inside the picture: a corner q
+  // (from the centre) at depth D + q.f needs |q.r| <= tan_x (D + q.f) and |q.u| <= tan_y (D + q.f).
+  const Eigen::Vector3d forward = -direction;
+  const Eigen::Vector3d right = forward.cross(u).normalized(), image_up = right.cross(forward);
+  const double tan_y = std::tan(0.5 * fov_deg * M_PI / 180.0), tan_x = tan_y * aspect;
+  double distance = radius;  // at least outside a sphere around the box's centre
+  for (int corner = 0; corner < 8; ++corner) {
+    const Eigen::Vector3d q = Eigen::Vector3d((corner & 1) ? upper.x() : lower.x(), (corner & 2) ? upper.y() : lower.y(),
+                                              (corner & 4) ? upper.z() : lower.z()) - center;
+    distance = std::max({distance, std::abs(q.dot(right)) / tan_x - q.dot(forward),
+                         std::abs(q.dot(image_up)) / tan_y - q.dot(forward)});
+  }
   RenderCamera camera;
   camera.target = center;
-  camera.position = center + direction * (1.02 * radius / std::sin(half_min));
+  camera.position = center + direction * (1.08 * distance);  // a margin of a few per cent
   camera.up = u;
   camera.fov_deg = fov_deg;
   return camera;
@@ -198,7 +208,7 @@ Image render_image(const RenderInput& in, const RenderCamera& camera, int width,
   f.tan_half = std::tan(0.5 * camera.fov_deg * M_PI / 180.0);
   f.aspect = static_cast<double>(width) / height;
   const Eigen::Vector3d up = in.up.normalized();
-  f.light = (up + 0.6 * f.right - 0.8 * f.forward).normalized();  // above, right, behind the eye
+  f.light = (up + 0.5 * f.right - 1.2 * f.forward).normalized();  // above, right, behind the eye
   Eigen::Vector3d lower = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d upper = -lower;
   for (size_t v = 0; v + 2 < in.positions.size(); v += 3) {
