@@ -211,6 +211,25 @@ bool segment_meets_triangle(const Vector3d& p, const Vector3d& q, int sp, int sq
   return !(some_positive && some_negative);
 }
 
+// x lies in the plane of triangle (v, c, d) (non-zero area): does the ray from v through x start
+// into the triangle, i.e. does x - v lie in its closed corner at v? Decided in a projection that
+// keeps the plane one-to-one, as in coplanar_segment_meets_triangle.
+bool direction_in_corner(const Vector3d& v, const Vector3d& x, const Vector3d& c,
+                         const Vector3d& d) {
+  for (int axis = 0; axis < 3; ++axis) {
+    const Point2 v2 = drop_axis(v, axis);
+    const Point2 c2 = drop_axis(c, axis);
+    const Point2 d2 = drop_axis(d, axis);
+    const int turn = orient2d_sign(v2, c2, d2);
+    if (turn == 0) continue;
+    const Point2 x2 = drop_axis(x, axis);
+    // Between the corner's two sides, counted in the triangle's turning sense. The corner is less
+    // than a half turn, so the direction opposite a side (0 against that side) fails the other.
+    return turn * orient2d_sign(v2, c2, x2) >= 0 && turn * orient2d_sign(v2, x2, d2) >= 0;
+  }
+  return false;
+}
+
 inline Vector3d vertex(const double* x, int32_t v) { return {x[3 * v], x[3 * v + 1], x[3 * v + 2]}; }
 
 }  // namespace
@@ -254,6 +273,35 @@ bool triangles_intersect(const Vector3d& a0, const Vector3d& a1, const Vector3d&
     if (segment_meets_triangle(b[i], b[j], side_of_b[i], side_of_b[j], a0, a1, a2)) return true;
   }
   return false;
+}
+
+bool triangles_overlap_beyond_vertex(const Vector3d& v, const Vector3d& p1, const Vector3d& p2,
+                                     const Vector3d& q1, const Vector3d& q2) {
+  // If p1 and p2 are strictly on one side of the other triangle's plane, so is every point of
+  // (v, p1, p2) but v: the usual answer for two triangles around a vertex of a surface.
+  const int a1 = orient3d_sign(v, q1, q2, p1);
+  const int a2 = orient3d_sign(v, q1, q2, p2);
+  if (a1 * a2 > 0) return false;
+  // In one plane, near v each triangle is its corner and the intersection is convex, so they
+  // share more than v iff their corners do, iff a side of one corner lies in the other (each is
+  // less than a half turn). This is also the common case of neighbours on a flat face.
+  if (a1 == 0 && a2 == 0)
+    return direction_in_corner(v, p1, q1, q2) || direction_in_corner(v, p2, q1, q2) ||
+           direction_in_corner(v, q1, p1, p2) || direction_in_corner(v, q2, p1, p2);
+  const int b1 = orient3d_sign(v, p1, p2, q1);
+  const int b2 = orient3d_sign(v, p1, p2, q2);
+  if (b1 * b2 > 0) return false;
+  // The intersection is convex and holds v; if it holds more, it has an extreme point other than
+  // v, which lies on an edge of one triangle and in the other (as in triangles_intersect). On the
+  // edge opposite v any contact counts, it is not v. On an edge from v, say v p1, a point of the
+  // other triangle other than v puts the whole line v p1 in that triangle's plane and the
+  // direction p1 - v in its corner at v; conversely such a direction enters both triangles.
+  if (segment_meets_triangle(p1, p2, a1, a2, v, q1, q2)) return true;
+  if (segment_meets_triangle(q1, q2, b1, b2, v, p1, p2)) return true;
+  return (a1 == 0 && direction_in_corner(v, p1, q1, q2)) ||
+         (a2 == 0 && direction_in_corner(v, p2, q1, q2)) ||
+         (b1 == 0 && direction_in_corner(v, q1, p1, p2)) ||
+         (b2 == 0 && direction_in_corner(v, q2, p1, p2));
 }
 
 std::vector<IndexPair> intersecting_triangle_pairs(const double* x, const int32_t* triangles,
