@@ -13,11 +13,13 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "engine/parallel.hpp"
 
@@ -93,6 +95,9 @@ int orient3d_exact(const Vector3d& a, const Vector3d& b, const Vector3d& c, cons
       const double x = sign * rows[0][kPermutations[s][0]][bits & 1];
       const double y = rows[1][kPermutations[s][1]][(bits >> 1) & 1];
       const double z = rows[2][kPermutations[s][2]][(bits >> 2) & 1];
+      // A zero factor adds nothing. Common: an exact difference has lo = 0, and points on an
+      // axis-aligned plane make a whole column 0, which leaves nothing at all to add.
+      if (x == 0.0 || y == 0.0 || z == 0.0) continue;
       double p;
       double e;
       two_product(x, y, p, e);
@@ -145,6 +150,8 @@ int orient2d_sign(const Point2& a, const Point2& b, const Point2& c) {
   const double right = (b.y - a.y) * (c.x - a.x);
   const double det = left - right;
   if (std::abs(det) > kOrient2dBound * (std::abs(left) + std::abs(right))) return sign_of(det);
+  // On a line x = const or y = const (grid lines of an axis-aligned mesh): exactly 0.
+  if ((b.x == a.x && c.x == a.x) || (b.y == a.y && c.y == a.y)) return 0;
   return orient2d_exact(a, b, c);
 }
 
@@ -175,13 +182,26 @@ bool triangle_contains_2d(const Point2& a, const Point2& b, const Point2& c, con
   return !(some_positive && some_negative);
 }
 
+// The axes to project triangle abc's plane along, the one of the largest normal component first.
+// Any axis whose projection keeps the triangle's area gives the same answers; the largest one is
+// the best conditioned, and an axis the plane is parallel to (a zero normal component, as on every
+// face of an axis-aligned box) would cost an exact evaluation of a 0 before being skipped.
+std::array<int, 3> projection_order(const Vector3d& a, const Vector3d& b, const Vector3d& c) {
+  const Vector3d n = (b - a).cross(c - a).cwiseAbs();
+  std::array<int, 3> order = {0, 1, 2};
+  if (n[order[1]] > n[order[0]]) std::swap(order[0], order[1]);
+  if (n[order[2]] > n[order[1]]) std::swap(order[1], order[2]);
+  if (n[order[1]] > n[order[0]]) std::swap(order[0], order[1]);
+  return order;
+}
+
 // Segment pq lying exactly in the plane of triangle abc meets the closed triangle. The plane is
 // projected along an axis it is not parallel to (exact projected area non-zero), which maps it
 // one-to-one onto 2D, so the 2D answer is the 3D one. A zero-area triangle has no such axis:
 // false (the caller tests its edges instead).
 bool coplanar_segment_meets_triangle(const Vector3d& p, const Vector3d& q, const Vector3d& a,
                                      const Vector3d& b, const Vector3d& c) {
-  for (int axis = 0; axis < 3; ++axis) {
+  for (const int axis : projection_order(a, b, c)) {
     const Point2 a2 = drop_axis(a, axis);
     const Point2 b2 = drop_axis(b, axis);
     const Point2 c2 = drop_axis(c, axis);
@@ -216,7 +236,7 @@ bool segment_meets_triangle(const Vector3d& p, const Vector3d& q, int sp, int sq
 // keeps the plane one-to-one, as in coplanar_segment_meets_triangle.
 bool direction_in_corner(const Vector3d& v, const Vector3d& x, const Vector3d& c,
                          const Vector3d& d) {
-  for (int axis = 0; axis < 3; ++axis) {
+  for (const int axis : projection_order(v, c, d)) {
     const Point2 v2 = drop_axis(v, axis);
     const Point2 c2 = drop_axis(c, axis);
     const Point2 d2 = drop_axis(d, axis);
@@ -249,6 +269,10 @@ int orient3d_sign(const Vector3d& a, const Vector3d& b, const Vector3d& c, const
                            std::abs(u.y()) * (std::abs(vz_wx) + std::abs(vx_wz)) +
                            std::abs(u.z()) * (std::abs(vx_wy) + std::abs(vy_wx));
   if (std::abs(det) > kOrient3dBound * permanent) return sign_of(det);
+  // All four points on a plane x_k = const, as on every face of an axis-aligned box: exactly 0
+  // without the exact evaluation (a computed difference is 0 only for equal coordinates).
+  for (int k = 0; k < 3; ++k)
+    if (u[k] == 0.0 && v[k] == 0.0 && w[k] == 0.0) return 0;
   return orient3d_exact(a, b, c, d);
 }
 
