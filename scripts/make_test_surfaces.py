@@ -13,6 +13,7 @@ Into tests/data/meshes/surfaces/:
           open_box.obj, nonmanifold_edge.obj, nonmanifold_vertex.obj, flipped_triangle.obj,
           self_intersecting.obj, inverted.obj, degenerate_triangle.ply;
   refused by the readers: truncated_binary.stl, bad_header.ply.
+Into tests/data/fuzz/fuzz_stl/ and fuzz_ply/: a tet in each encoding, the fuzzers' small seeds.
 
 The box is [1, 1.5] x [2, 2.5] x [3, 3.5]: every coordinate is exact in float, so the binary STL
 and the float PLY hold the same numbers as the text files. The vertex order of the OBJ and PLY
@@ -211,7 +212,30 @@ def refused_files():
     write("bad_header.ply", text)
 
 
+def fuzz_seeds():
+    """A positively oriented unit tet in every encoding, written where scripts/fuzz.sh seeds from."""
+    fuzz = OUT.parent.parent / "fuzz"
+    corners = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)]
+    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    triangles = [tuple(corners[i] for i in f) for f in faces]
+    (fuzz / "fuzz_stl").mkdir(exist_ok=True)
+    (fuzz / "fuzz_stl" / "tet_ascii.stl").write_bytes(ascii_stl(triangles, "tet"))
+    (fuzz / "fuzz_stl" / "tet_binary.stl").write_bytes(binary_stl(triangles, "solid tet, binary"))
+    (fuzz / "fuzz_ply").mkdir(exist_ok=True)
+    header = ["ply", "format ascii 1.0", "element vertex 4", "property float x", "property float y",
+              "property float z", "element face 4", "property list uchar int vertex_indices", "end_header"]
+    body = [" ".join(number(c) for c in p) for p in corners] + ["3 " + " ".join(map(str, f)) for f in faces]
+    (fuzz / "fuzz_ply" / "tet_ascii.ply").write_text("\n".join(header + body) + "\n")
+    for order, name in (("<", "binary_little_endian"), (">", "binary_big_endian")):
+        header[1] = f"format {name} 1.0"
+        data = ("\n".join(header) + "\n").encode()
+        data += b"".join(struct.pack(order + "3f", *p) for p in corners)
+        data += b"".join(struct.pack(order + "B3i", 3, *f) for f in faces)
+        (fuzz / "fuzz_ply" / f"tet_{name}.ply").write_bytes(data)
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     good_files()
     refused_files()
+    fuzz_seeds()
