@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Fuzzes the scene and mesh readers with libFuzzer under AddressSanitizer and UBSan (issue 6,
 # "Hostile input"). Installs the missing Debian packages (those of build.sh plus clang), builds
-# the three targets of tests/fuzz in build-fuzz/, then runs them one after the other:
+# the five targets of tests/fuzz in build-fuzz/, then runs them one after the other:
 #   scripts/fuzz.sh                     each target for 600 s
 #   scripts/fuzz.sh 60                  each target for 60 s
-#   scripts/fuzz.sh 60 fuzz_msh         one target (fuzz_scene, fuzz_msh, fuzz_obj)
+#   scripts/fuzz.sh 60 fuzz_msh         one target (fuzz_scene, fuzz_msh, fuzz_obj, fuzz_stl, fuzz_ply)
 # Each run starts from the seed corpus kept in the repository (valid inputs in
 # tests/data/fuzz/<target>/, nasty ones in tests/data/nasty/ and tests/data/meshes/) and writes the inputs it finds interesting to build-fuzz/corpus/<target>/
 # (kept between runs, never in the repository). A finding (crash, sanitizer report, hang over
@@ -18,7 +18,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(fuzz_scene fuzz_msh fuzz_obj)
+[ ${#targets[@]} -eq 0 ] && targets=(fuzz_scene fuzz_msh fuzz_obj fuzz_stl fuzz_ply)
 
 source scripts/install_packages.sh
 install_missing "${nexdyn_packages[@]}" clang-14 libclang-rt-14-dev
@@ -39,9 +39,11 @@ for target in "${targets[@]}"; do
   echo "fuzz.sh: $target for ${seconds} s (log: $build_dir/$target.log)"
   status=0
   # Seeds: the target's valid inputs, the nasty-input corpus of the regression tests, and for
-  # the .msh reader the bad meshes of its own tests. Only "$corpus" is written to.
+  # the .msh reader the bad meshes of its own tests, for the STL and PLY readers the surface files
+  # of theirs. Only "$corpus" is written to.
   seeds=("tests/data/fuzz/$target" tests/data/nasty)
   [ "$target" = fuzz_msh ] && seeds+=(tests/data/meshes)
+  [ "$target" = fuzz_stl ] || [ "$target" = fuzz_ply ] && seeds+=(tests/data/meshes/surfaces)
   "$build_dir/tests/$target" "$corpus" "${seeds[@]}" -dict="tests/data/fuzz/$target.dict" \
       -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=2048 -timeout=10 \
       -artifact_prefix="$findings/" -print_final_stats=1 >"$build_dir/$target.log" 2>&1 || status=$?

@@ -13,11 +13,13 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "engine/parallel.hpp"
 
@@ -93,6 +95,9 @@ int orient3d_exact(const Vector3d& a, const Vector3d& b, const Vector3d& c, cons
       const double x = sign * rows[0][kPermutations[s][0]][bits & 1];
       const double y = rows[1][kPermutations[s][1]][(bits >> 1) & 1];
       const double z = rows[2][kPermutations[s][2]][(bits >> 2) & 1];
+      // A zero factor adds nothing. Common: an exact difference has lo = 0, and points on an
+      // axis-aligned plane make a whole column 0, which leaves nothing at all to add.
+      if (x == 0.0 || y == 0.0 || z == 0.0) continue;
       double p;
       double e;
       two_product(x, y, p, e);
@@ -145,6 +150,8 @@ int orient2d_sign(const Point2& a, const Point2& b, const Point2& c) {
   const double right = (b.y - a.y) * (c.x - a.x);
   const double det = left - right;
   if (std::abs(det) > kOrient2dBound * (std::abs(left) + std::abs(right))) return sign_of(det);
+  // On a line x = const or y = const (grid lines of an axis-aligned mesh): exactly 0.
+  if ((b.x == a.x && c.x == a.x) || (b.y == a.y && c.y == a.y)) return 0;
   return orient2d_exact(a, b, c);
 }
 
@@ -175,13 +182,26 @@ bool triangle_contains_2d(const Point2& a, const Point2& b, const Point2& c, con
   return !(some_positive && some_negative);
 }
 
+// The axes to project triangle abc's plane along, the one of the largest normal component first.
+// Any axis whose projection keeps the triangle's area gives the same answers; the largest one is
+// the best conditioned, and an axis the plane is parallel to (a zero normal component, as on every
+// face of an axis-aligned box) would cost an exact evaluation of a 0 before being skipped.
+std::array<int, 3> projection_order(const Vector3d& a, const Vector3d& b, const Vector3d& c) {
+  const Vector3d n = (b - a).cross(c - a).cwiseAbs();
+  std::array<int, 3> order = {0, 1, 2};
+  if (n[order[1]] > n[order[0]]) std::swap(order[0], order[1]);
+  if (n[order[2]] > n[order[1]]) std::swap(order[1], order[2]);
+  if (n[order[1]] > n[order[0]]) std::swap(order[0], order[1]);
+  return order;
+}
+
 // Segment pq lying exactly in the plane of triangle abc meets the closed triangle. The plane is
 // projected along an axis it is not parallel to (exact projected area non-zero), which maps it
 // one-to-one onto 2D, so the 2D answer is the 3D one. A zero-area triangle has no such axis:
 // false (the caller tests its edges instead).
 bool coplanar_segment_meets_triangle(const Vector3d& p, const Vector3d& q, const Vector3d& a,
                                      const Vector3d& b, const Vector3d& c) {
-  for (int axis = 0; axis < 3; ++axis) {
+  for (const int axis : projection_order(a, b, c)) {
     const Point2 a2 = drop_axis(a, axis);
     const Point2 b2 = drop_axis(b, axis);
     const Point2 c2 = drop_axis(c, axis);
@@ -211,6 +231,25 @@ bool segment_meets_triangle(const Vector3d& p, const Vector3d& q, int sp, int sq
   return !(some_positive && some_negative);
 }
 
+// x lies in the plane of triangle (v, c, d) (non-zero area): does the ray from v through x start
+// into the triangle, i.e. does x - v lie in its closed corner at v? Decided in a projection that
+// keeps the plane one-to-one, as in coplanar_segment_meets_triangle.
+bool direction_in_corner(const Vector3d& v, const Vector3d& x, const Vector3d& c,
+                         const Vector3d& d) {
+  for (const int axis : projection_order(v, c, d)) {
+    const Point2 v2 = drop_axis(v, axis);
+    const Point2 c2 = drop_axis(c, axis);
+    const Point2 d2 = drop_axis(d, axis);
+    const int turn = orient2d_sign(v2, c2, d2);
+    if (turn == 0) continue;
+    const Point2 x2 = drop_axis(x, axis);
+    // Between the corner's two sides, counted in the triangle's turning sense. The corner is less
+    // than a half turn, so the direction opposite a side (0 against that side) fails the other.
+    return turn * orient2d_sign(v2, c2, x2) >= 0 && turn * orient2d_sign(v2, x2, d2) >= 0;
+  }
+  return false;
+}
+
 inline Vector3d vertex(const double* x, int32_t v) { return {x[3 * v], x[3 * v + 1], x[3 * v + 2]}; }
 
 }  // namespace
@@ -230,6 +269,10 @@ int orient3d_sign(const Vector3d& a, const Vector3d& b, const Vector3d& c, const
                            std::abs(u.y()) * (std::abs(vz_wx) + std::abs(vx_wz)) +
                            std::abs(u.z()) * (std::abs(vx_wy) + std::abs(vy_wx));
   if (std::abs(det) > kOrient3dBound * permanent) return sign_of(det);
+  // All four points on a plane x_k = const, as on every face of an axis-aligned box: exactly 0
+  // without the exact evaluation (a computed difference is 0 only for equal coordinates).
+  for (int k = 0; k < 3; ++k)
+    if (u[k] == 0.0 && v[k] == 0.0 && w[k] == 0.0) return 0;
   return orient3d_exact(a, b, c, d);
 }
 
@@ -254,6 +297,35 @@ bool triangles_intersect(const Vector3d& a0, const Vector3d& a1, const Vector3d&
     if (segment_meets_triangle(b[i], b[j], side_of_b[i], side_of_b[j], a0, a1, a2)) return true;
   }
   return false;
+}
+
+bool triangles_overlap_beyond_vertex(const Vector3d& v, const Vector3d& p1, const Vector3d& p2,
+                                     const Vector3d& q1, const Vector3d& q2) {
+  // If p1 and p2 are strictly on one side of the other triangle's plane, so is every point of
+  // (v, p1, p2) but v: the usual answer for two triangles around a vertex of a surface.
+  const int a1 = orient3d_sign(v, q1, q2, p1);
+  const int a2 = orient3d_sign(v, q1, q2, p2);
+  if (a1 * a2 > 0) return false;
+  // In one plane, near v each triangle is its corner and the intersection is convex, so they
+  // share more than v iff their corners do, iff a side of one corner lies in the other (each is
+  // less than a half turn). This is also the common case of neighbours on a flat face.
+  if (a1 == 0 && a2 == 0)
+    return direction_in_corner(v, p1, q1, q2) || direction_in_corner(v, p2, q1, q2) ||
+           direction_in_corner(v, q1, p1, p2) || direction_in_corner(v, q2, p1, p2);
+  const int b1 = orient3d_sign(v, p1, p2, q1);
+  const int b2 = orient3d_sign(v, p1, p2, q2);
+  if (b1 * b2 > 0) return false;
+  // The intersection is convex and holds v; if it holds more, it has an extreme point other than
+  // v, which lies on an edge of one triangle and in the other (as in triangles_intersect). On the
+  // edge opposite v any contact counts, it is not v. On an edge from v, say v p1, a point of the
+  // other triangle other than v puts the whole line v p1 in that triangle's plane and the
+  // direction p1 - v in its corner at v; conversely such a direction enters both triangles.
+  if (segment_meets_triangle(p1, p2, a1, a2, v, q1, q2)) return true;
+  if (segment_meets_triangle(q1, q2, b1, b2, v, p1, p2)) return true;
+  return (a1 == 0 && direction_in_corner(v, p1, q1, q2)) ||
+         (a2 == 0 && direction_in_corner(v, p2, q1, q2)) ||
+         (b1 == 0 && direction_in_corner(v, q1, p1, p2)) ||
+         (b2 == 0 && direction_in_corner(v, q2, p1, p2));
 }
 
 std::vector<IndexPair> intersecting_triangle_pairs(const double* x, const int32_t* triangles,

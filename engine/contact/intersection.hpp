@@ -39,6 +39,15 @@ bool triangles_intersect(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1,
                          const Eigen::Vector3d& a2, const Eigen::Vector3d& b0,
                          const Eigen::Vector3d& b1, const Eigen::Vector3d& b2);
 
+// Closed triangles (v, p1, p2) and (v, q1, q2), which share the corner v, have a point other
+// than v in common: they cross, touch elsewhere, or overlap from v on (in one plane, their
+// corners at v overlapping). Exact like triangles_intersect; both triangles must have non-zero
+// area. For the surface check (engine/mesh/self_intersection.hpp), where two triangles around a
+// vertex may fold through each other although they always touch at the vertex.
+bool triangles_overlap_beyond_vertex(const Eigen::Vector3d& v, const Eigen::Vector3d& p1,
+                                     const Eigen::Vector3d& p2, const Eigen::Vector3d& q1,
+                                     const Eigen::Vector3d& q2);
+
 // All pairs (i, j), i < j, of triangles that share NO vertex id and intersect; sorted.
 //   x: (num_vertices x 3) packed xyz positions; triangles: (num_triangles x 3) vertex ids.
 // Triangles sharing a vertex always touch there, so they are skipped: an intersection of two

@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <initializer_list>
 #include <random>
 #include <vector>
 
@@ -534,6 +535,120 @@ TEST_CASE("intersection: point_inside_surface on the sphere1K mesh") {
     CHECK_FALSE(point_inside_surface(out, sphere.positions.data(), surface.triangles.data(),
                                      surface.num_triangles()));
   }
+}
+
+namespace {
+
+// Integer geometry for the reference below: exact in int64 for small coordinates.
+using IntPoint = std::array<int64_t, 3>;
+
+IntPoint sub(const IntPoint& a, const IntPoint& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+IntPoint cross(const IntPoint& a, const IntPoint& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+int64_t dot(const IntPoint& a, const IntPoint& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+bool is_zero(const IntPoint& a) { return a[0] == 0 && a[1] == 0 && a[2] == 0; }
+int64_t det3(const IntPoint& a, const IntPoint& b, const IntPoint& c) { return dot(a, cross(b, c)); }
+Vector3d to_vector(const IntPoint& a) { return Vector3d(double(a[0]), double(a[1]), double(a[2])); }
+
+bool one_sign(std::initializer_list<int64_t> values) {
+  bool positive = true, negative = true;
+  for (int64_t x : values) {
+    positive = positive && x > 0;
+    negative = negative && x < 0;
+  }
+  return positive || negative;
+}
+
+// Reference for triangles_overlap_beyond_vertex, by another route: near v each triangle is its
+// wedge v + cone(p1 - v, p2 - v) and the intersection is convex, so the triangles share a point
+// other than v iff the wedges do, iff some nonzero l >= 0 has l1 a1 + l2 a2 - l3 b1 - l4 b2 = 0
+// (a = p - v, b = q - v). Such an l exists iff the kernel vector of some circuit (a minimal
+// dependent set) of these four columns has one sign: two opposite parallel columns, three
+// coplanar ones no two parallel, or all four with every three independent.
+bool wedges_meet(const IntPoint& v, const IntPoint& p1, const IntPoint& p2, const IntPoint& q1,
+                 const IntPoint& q2) {
+  const IntPoint b1 = sub(q1, v), b2 = sub(q2, v);
+  const std::array<IntPoint, 4> c = {sub(p1, v), sub(p2, v), IntPoint{-b1[0], -b1[1], -b1[2]},
+                                     IntPoint{-b2[0], -b2[1], -b2[2]}};
+  auto parallel = [](const IntPoint& x, const IntPoint& y) { return is_zero(cross(x, y)); };
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j)
+      if (parallel(c[i], c[j]) && dot(c[i], c[j]) < 0) return true;
+  int64_t minor[4];
+  for (int skip = 0; skip < 4; ++skip) {
+    std::array<IntPoint, 3> t;
+    for (int k = 0, m = 0; k < 4; ++k)
+      if (k != skip) t[m++] = c[k];
+    minor[skip] = det3(t[0], t[1], t[2]);
+    if (minor[skip] != 0 || parallel(t[0], t[1]) || parallel(t[1], t[2]) || parallel(t[2], t[0]))
+      continue;
+    const IntPoint n = cross(t[0], t[1]);
+    if (one_sign({dot(cross(t[1], t[2]), n), dot(cross(t[2], t[0]), n), dot(cross(t[0], t[1]), n)}))
+      return true;
+  }
+  const bool all_independent = minor[0] != 0 && minor[1] != 0 && minor[2] != 0 && minor[3] != 0;
+  return all_independent && one_sign({minor[0], -minor[1], minor[2], -minor[3]});
+}
+
+}  // namespace
+
+TEST_CASE("intersection: triangles_overlap_beyond_vertex on handmade corners") {
+  const Vector3d v(0, 0, 0), p1(2, 0, 0), p2(0, 2, 0);
+  auto overlap = [&](const Vector3d& q1, const Vector3d& q2) {
+    const bool result = triangles_overlap_beyond_vertex(v, p1, p2, q1, q2);
+    CHECK(triangles_overlap_beyond_vertex(v, q2, q1, p2, p1) == result);  // symmetric
+    return result;
+  };
+  // Neighbours around a vertex of a closed surface: only v in common.
+  CHECK_FALSE(overlap(Vector3d(0, -2, 0), Vector3d(-2, 0, 1)));
+  CHECK_FALSE(overlap(Vector3d(0, 0, 2), Vector3d(-1, -1, 0)));
+  // Coplanar corners that overlap, that share a side's direction, that only meet at v.
+  CHECK(overlap(Vector3d(2, 2, 0), Vector3d(-1, 3, 0)));
+  CHECK(overlap(Vector3d(1, 0, 0), Vector3d(1, -1, 0)));
+  CHECK_FALSE(overlap(Vector3d(-1, 0, 0), Vector3d(0, -1, 0)));
+  CHECK_FALSE(overlap(Vector3d(-1, 0, 0), Vector3d(-1, -1, 0)));
+  // Not coplanar: a side from v lies in the other's plane, inside its corner or outside it.
+  CHECK(overlap(Vector3d(1, 1, 0), Vector3d(0, 0, 1)));
+  CHECK_FALSE(overlap(Vector3d(-1, -1, 0), Vector3d(0, 0, 1)));
+  // Piercing: the other triangle passes through this one away from v; or touches its far edge.
+  CHECK(overlap(Vector3d(1, 1, 1), Vector3d(1, 1, -1)));
+  CHECK(overlap(Vector3d(1, 1, 0.5), Vector3d(3, 3, -1)));
+  // A side from v in this plane and into this corner overlaps near v, however far it reaches.
+  CHECK(overlap(Vector3d(1, std::nextafter(1.0, 2.0), 0), Vector3d(2, 2, 2)));
+  // Crossing this plane along the side v p1, or along a direction 1e-17 outside the corner.
+  CHECK(overlap(Vector3d(1, 0, 1), Vector3d(1, 0, -1)));
+  CHECK_FALSE(overlap(Vector3d(1, -1e-17, 1), Vector3d(1, -1e-17, -1)));
+}
+
+TEST_CASE("intersection: triangles_overlap_beyond_vertex equals the wedge circuits, random corners") {
+  // Coordinates in 0..3: coplanar corners, collinear sides and coincident corner positions (two
+  // ids at one place) are frequent.
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<int64_t> coordinate(0, 3);
+  auto random_point = [&]() { return IntPoint{coordinate(rng), coordinate(rng), coordinate(rng)}; };
+  auto degenerate = [](const IntPoint& a, const IntPoint& b, const IntPoint& c) {
+    return is_zero(cross(sub(b, a), sub(c, a)));
+  };
+  int hits = 0, trials = 0;
+  while (trials < 40000) {
+    const IntPoint v = random_point(), p1 = random_point(), p2 = random_point();
+    const IntPoint q1 = random_point(), q2 = random_point();
+    if (degenerate(v, p1, p2) || degenerate(v, q1, q2)) continue;
+    ++trials;
+    const bool expected = wedges_meet(v, p1, p2, q1, q2);
+    hits += expected;
+    const bool got = triangles_overlap_beyond_vertex(to_vector(v), to_vector(p1), to_vector(p2),
+                                                     to_vector(q1), to_vector(q2));
+    if (got != expected) {
+      INFO("v " << v[0] << v[1] << v[2] << " p " << p1[0] << p1[1] << p1[2] << " " << p2[0] << p2[1] << p2[2]
+                << " q " << q1[0] << q1[1] << q1[2] << " " << q2[0] << q2[1] << q2[2]);
+      REQUIRE(got == expected);
+    }
+  }
+  MESSAGE(hits << " of " << trials << " corner pairs overlap beyond their vertex");
+  CHECK(hits > 2000);
+  CHECK(hits < 38000);
 }
 
 TEST_SUITE_END();
