@@ -271,7 +271,7 @@ class BodyReader {
   [[noreturn]] void fail(const std::string& what) const {
     std::string where = std::string(name_) + ": ";
     if (format_ == Format::ascii) where += "line " + std::to_string(line_) + ": ";
-    throw MeshError(where + std::string(element_->name.substr(0, 40)) + " " + std::to_string(index_ + 1) +
+    throw MeshError(where + excerpt(element_->name, HighBytes::replaced) + " " + std::to_string(index_ + 1) +
                     " of " + std::to_string(element_->count) + ": " + what);
   }
 

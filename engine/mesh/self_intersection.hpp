@@ -18,7 +18,8 @@
 // box for the triangles after it. That finds exactly the pairs of an O(n^2) loop over closed
 // boxes, in O(n log n) for a surface (5e9 pair tests become 10^6 for 100k triangles), about twice
 // as fast as Embree's rtcCollide here and without its list of all pairs. A sweep along one axis
-// would not do: on a face of an axis-aligned box every triangle shares the same x-interval.
+// would not do: on a face normal to that axis (a box, a mat) every triangle has the same interval
+// on it, so all pairs of the face would be tested.
 // Triangles are handled in chunks of consecutive ids, in parallel, each chunk's pairs tested in
 // (i, j) order, so "the first" pair is the same on every run and thread count.
 #pragma once
