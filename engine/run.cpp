@@ -542,7 +542,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       if (file_crc(record.scene_file) != record.scene_crc)
         throw std::runtime_error(record.scene_file.string() + " changed since the run started; resuming it "
                                  "would not continue the same run");
-      scene = std::make_unique<Scene>(load_scene(record.scene_file));
+      scene = std::make_unique<Scene>(load_scene(record.scene_file, {}, out / "meshes"));
       if (model_crc(scene->model) != record.model_crc)
         throw std::runtime_error(record.scene_file.string() + ": a mesh changed since the run started; "
                                  "resuming would not continue the same run");

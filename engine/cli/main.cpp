@@ -4,22 +4,27 @@
 //   nexdyn resume DIR [--threads K] [--quiet]
 //   nexdyn check SCENE.json
 //   nexdyn ccd QUERIES.txt   (narrow-phase CCD over a query file with ground truth; one line)
+//   nexdyn mesh SURFACE OUT.msh [--max-volume V] [--min-quality Q] [--refine-surface]   (fill with tets)
 //   nexdyn render DIR [--frame N|--all] [--out PNGDIR] [--size WxH] [--camera EX,EY,EZ,TX,TY,TZ[,FOV]]
 //                 [--color body|speed] [--video OUT.mp4 [--fps F]] [--threads K]
 //   nexdyn plot DIR [--out PNGDIR] [--size WxH]   (PNG charts of a run's stats.csv and timings.csv)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
 #include "engine/ccd_queries.hpp"
 #include "engine/plot/stats_plot.hpp"
+#include "engine/mesh/msh_writer.hpp"
+#include "engine/output/frame_writer.hpp"
 #include "engine/render/render_command.hpp"
 #include "engine/render/view_file.hpp"
 #include "engine/run.hpp"
 #include "engine/scene/scene.hpp"
+#include "engine/scene/surface_body.hpp"
 #include "kernels/isa.hpp"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -65,7 +70,10 @@ struct CliArgs {
   bool quiet = false;
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
   CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr, *render = nullptr,
-           *plot = nullptr;
+           *plot = nullptr, *mesh = nullptr;
+  // nexdyn mesh
+  std::string mesh_in, mesh_out;
+  TetrahedralizeSettings tetrahedralize;
   // nexdyn plot
   std::string plot_dir, plot_out, plot_size = "1200x800";
   // nexdyn render
@@ -105,6 +113,14 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.plot->add_option("dir", a.plot_dir, "The run's output folder")->required();
   a.plot->add_option("--out", a.plot_out, "Folder of the PNGs (default DIR/plots)");
   a.plot->add_option("--size", a.plot_size, "Width x height of each PNG in pixels (default 1200x800)");
+  a.mesh = app.add_subcommand("mesh", "Fill a closed surface (.obj, .stl, .ply) with tets and write a .msh");
+  a.mesh->add_option("surface", a.mesh_in, "Closed triangle surface")->required();
+  a.mesh->add_option("out", a.mesh_out, "The .msh file to write")->required();
+  a.mesh->add_option("--max-volume", a.tetrahedralize.max_volume, "Largest tet volume (default 0: no bound)");
+  a.mesh->add_option("--min-quality", a.tetrahedralize.min_quality,
+                     "Smallest tet quality, 1 = regular (default 0.306; 0: no refinement; at most 0.557)");
+  a.mesh->add_flag("--refine-surface", a.tetrahedralize.refine_surface,
+                   "Let TetGen split the surface triangles (points on them) so that the bounds hold there too");
   a.render = app.add_subcommand("render", "Ray-trace PNG pictures of a run's frames (and a video with ffmpeg)");
   a.render->add_option("dir", a.render_dir, "The run's output folder")->required();
   a.render->add_option("--frame", a.render_frame, "Frame number N of frames/frame_N.vtu (default: the last)")
@@ -119,6 +135,18 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.render->add_option("--video", a.video, "With --all: also an .mp4 of the pictures (needs ffmpeg)");
   a.render->add_option("--fps", a.fps, "Frames per second of the video (default: from the frames' times)");
   a.render->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+}
+
+int run_mesh(const CliArgs& a) {
+  const std::filesystem::path out = a.mesh_out;
+  if (out.extension() != ".msh") throw std::runtime_error(out.string() + ": expected a .msh file name");
+  const auto start = std::chrono::steady_clock::now();
+  const SurfaceBody body = surface_body(a.mesh_in, a.tetrahedralize, {});
+  write_file_atomically(out, msh_document(body.mesh));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("%s: %d vertices, %d tets, volume %.9g, %.3f s\n", out.string().c_str(), body.mesh.num_vertices(),
+              body.mesh.num_tets(), mesh_volume(body.mesh), seconds);
+  return 0;
 }
 
 int run_render(const CliArgs& a) {
@@ -187,11 +215,14 @@ RunSummary run_or_resume(const CliArgs& a, std::filesystem::path& out) {
     if (!a.quiet) std::printf("resumed after step %lld\n", static_cast<long long>(summary.first_step - 1));
     return summary;
   }
-  Scene scene = load_scene(a.scene_path);
+  // The output folder first: tetrahedralised surface bodies are kept in its meshes/ folder.
+  const std::filesystem::path out_dir =
+      a.out_dir.empty() ? std::filesystem::path("out") / scene_name(a.scene_path) : std::filesystem::path(a.out_dir);
+  Scene scene = load_scene(a.scene_path, {}, out_dir / "meshes");
   override_integrator(scene, a.integrator, a.rho_inf);
   if (!a.energy_guard.empty()) scene.time.energy_guard = a.energy_guard == "on";
   RunOptions options;
-  options.out_dir = a.out_dir.empty() ? std::filesystem::path("out") / scene.name : std::filesystem::path(a.out_dir);
+  options.out_dir = out_dir;
   options.steps = a.steps;
   options.progress = !a.quiet && isatty(STDERR_FILENO);
   options.checkpoint_every = a.checkpoint_every;
@@ -246,6 +277,7 @@ int main(int argc, char** argv) {
     if (*a.ccd) return run_ccd(a);
     if (*a.check) return run_check(a);
     if (*a.render) return run_render(a);
+    if (*a.mesh) return run_mesh(a);
     if (*a.plot) return run_plot(a);
     std::filesystem::path out;
     const RunSummary summary = run_or_resume(a, out);

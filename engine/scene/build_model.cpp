@@ -6,6 +6,7 @@
 #include "engine/mesh/msh_reader.hpp"
 #include "engine/mesh/surface.hpp"
 #include "engine/mesh/tet_mesh.hpp"
+#include "engine/scene/surface_body.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 
@@ -32,7 +33,9 @@ namespace {
 using BodyMesh = std::pair<TetMesh, SurfaceMesh>;
 
 struct MeshCache {
-  std::map<std::string, BodyMesh> entries;  // by "mesh:<path>" or "box:<json>"; std::map: stable addresses
+  std::map<std::string, BodyMesh> entries;  // by "mesh:<path>[|<TetGen switches>]" or "box:<json>";
+                                            // std::map: stable addresses
+  fs::path surface_cache_dir;               // tetrahedralised surfaces are kept here (empty: not kept)
 };
 
 // One entry of "bodies" before expansion of its array.
@@ -54,16 +57,37 @@ Eigen::Matrix3d rotation_xyz_degrees(const Eigen::Vector3d& deg) {
           Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX())).toRotationMatrix();
 }
 
-// The .msh file named by the entry's "mesh".
+// A surface body's "tetrahedralize" keys (`j`, at `w`).
+TetrahedralizeSettings read_tetrahedralize(const json& j, const Where& w) {
+  check_keys(j, w, {"max_volume", "min_quality", "refine_surface"});
+  TetrahedralizeSettings settings;
+  if (j.contains("refine_surface")) settings.refine_surface = boolean(j["refine_surface"], w["refine_surface"]);
+  if (j.contains("max_volume")) settings.max_volume = non_negative(j["max_volume"], w["max_volume"]);
+  if (j.contains("min_quality")) {
+    settings.min_quality = non_negative(j["min_quality"], w["min_quality"]);
+    if (settings.min_quality > kMaxMinQuality)
+      w["min_quality"].fail(tetrahedralize_settings_problem(settings), j["min_quality"]);
+  }
+  return settings;
+}
+
+// The mesh named by the entry's "mesh": a .msh tet mesh, or a closed surface (.obj, .stl, .ply)
+// filled with tets (surface_body.hpp) as its "tetrahedralize" keys say.
 const BodyMesh& read_mesh_entry(const json& j, const Where& w, const fs::path& scene_dir, MeshCache& cache) {
   const fs::path path = scene_dir / string(j["mesh"], w["mesh"]);
-  const std::string key = "mesh:" + path.lexically_normal().string();
+  const bool surface_file = is_surface_file(path);
+  if (j.contains("tetrahedralize") && !surface_file)
+    w["tetrahedralize"].fail("applies to surface meshes (.obj, .stl, .ply) only; \"mesh\" is " + path.string());
+  const TetrahedralizeSettings settings =
+      j.contains("tetrahedralize") ? read_tetrahedralize(j["tetrahedralize"], w["tetrahedralize"])
+                                   : TetrahedralizeSettings{};
+  const std::string key = "mesh:" + path.lexically_normal().string() + (surface_file ? "|" + tetgen_switches(settings) : "");
   if (const auto found = cache.entries.find(key); found != cache.entries.end()) return found->second;
   std::error_code error;  // the throwing fs::exists would escape with its own message
   if (!fs::exists(path, error)) w["mesh"].fail("mesh file not found: " + path.string());
   TetMesh mesh;
   try {
-    mesh = read_msh(path);
+    mesh = surface_file ? surface_body(path, settings, cache.surface_cache_dir).mesh : read_msh(path);
   } catch (const std::exception& e) {
     w["mesh"].fail(e.what());
   }
@@ -118,7 +142,8 @@ void read_array(const json& a, const Where& wa, BodySpec& body) {
 // that the body and all its copies fit in the scene's limits next to what `model` already holds.
 BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
                    MeshCache& cache, const Model& model, const SceneLimits& limits) {
-  check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array"});
+  check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array",
+                    "tetrahedralize"});
   if (j.contains("mesh") == j.contains("box")) w.fail("give exactly one of \"mesh\" and \"box\"");
   const BodyMesh& mesh = j.contains("mesh") ? read_mesh_entry(j, w, scene_dir, cache)
                                             : read_box_entry(j["box"], w["box"], cache, model, limits);
@@ -230,8 +255,9 @@ std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int
 
 // Every entry of "bodies" (`bodies`, at `w`), each copy of an "array" as its own body.
 void append_bodies(const json& bodies, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
-                   const SceneLimits& limits, Model& model, State& initial) {
+                   const SceneLimits& limits, const fs::path& surface_cache_dir, Model& model, State& initial) {
   MeshCache cache;
+  cache.surface_cache_dir = surface_cache_dir;
   for (size_t b = 0; b < bodies.size(); ++b) {
     const BodySpec spec = read_body(bodies[b], w[b], scene_dir, material_ids, cache, model, limits);
     for (int64_t i = 0; i < spec.count[0]; ++i)
@@ -444,11 +470,12 @@ void check_size(const Model& model, int64_t vertices, int64_t tets, const SceneL
 // ---- the whole model -----------------------------------------------------------------------------
 
 void build_model(const json& root, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
-                 const SceneLimits& limits, bool contact_enabled, Model& model, State& initial) {
+                 const SceneLimits& limits, bool contact_enabled, const fs::path& surface_cache_dir, Model& model,
+                 State& initial) {
   if (!root.contains("bodies")) w.fail("missing key \"bodies\"");
   const json& bodies = root["bodies"];
   if (!bodies.is_array() || bodies.empty()) w["bodies"].fail("expected a non-empty array of bodies");
-  append_bodies(bodies, w["bodies"], scene_dir, material_ids, limits, model, initial);
+  append_bodies(bodies, w["bodies"], scene_dir, material_ids, limits, surface_cache_dir, model, initial);
   const int64_t num_scene_bodies = static_cast<int64_t>(bodies.size());
 
   if (root.contains("boundary")) {

@@ -27,10 +27,11 @@ namespace nexdyn::scene_io {
 // Appends every entry of the scene's "bodies", "boundary", "joints" and "obstacles" (`root` is
 // the whole file, at `w`) to `model`, whose materials must be in place, and each vertex's start
 // velocity to `initial.v`. With contact, moving boundaries and obstacles become kinematic
-// (DirichletMotion::kinematic). Meshes are found relative to `scene_dir`.
+// (DirichletMotion::kinematic). Meshes are found relative to `scene_dir`; bodies given as
+// surfaces keep their tets in `surface_cache_dir` (empty: they are made and not kept).
 void build_model(const json& root, const Where& w, const std::filesystem::path& scene_dir,
                  const MaterialIds& material_ids, const SceneLimits& limits, bool contact_enabled,
-                 Model& model, State& initial);
+                 const std::filesystem::path& surface_cache_dir, Model& model, State& initial);
 
 // ---- shared by the body and the obstacle builders --------------------------------------------
 

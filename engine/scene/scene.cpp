@@ -79,7 +79,12 @@ void set_initial_state(Scene& scene) {
 
 }  // namespace
 
-Scene load_scene(const fs::path& file, const SceneLimits& limits) {
+std::string scene_name(const fs::path& file) {
+  const json root = parse_scene_file(file);
+  return read_scene_name(root, Where(file, ""), file);
+}
+
+Scene load_scene(const fs::path& file, const SceneLimits& limits, const fs::path& mesh_cache_dir) {
   const json root = parse_scene_file(file);
   const Where w(file, "");
   check_keys(root, w, {"name", "gravity", "time", "solver", "contact", "materials", "bodies", "obstacles",
@@ -94,7 +99,8 @@ Scene load_scene(const fs::path& file, const SceneLimits& limits) {
   if (root.contains("contact") && root["contact"].contains("friction_pairs"))
     read_friction_pairs(root["contact"]["friction_pairs"], w["contact"]["friction_pairs"], material_ids, scene.contact);
 
-  build_model(root, w, file.parent_path(), material_ids, limits, scene.contact.enabled, scene.model, scene.initial);
+  build_model(root, w, file.parent_path(), material_ids, limits, scene.contact.enabled, mesh_cache_dir, scene.model,
+              scene.initial);
   set_initial_state(scene);
   return scene;
 }

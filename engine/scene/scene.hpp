@@ -112,6 +112,14 @@ struct SceneLimits {
   int64_t max_materials = 1'000;       // friction keeps a table of every pair
 };
 
-Scene load_scene(const std::filesystem::path& file, const SceneLimits& limits = {});
+// Reads, checks and builds the scene in `file`. Bodies given as surfaces (.obj, .stl, .ply) are
+// tetrahedralised, and the tets kept in `mesh_cache_dir` (the run's DIR/meshes) to be reused
+// while the surface and its settings stay the same; an empty folder keeps nothing.
+Scene load_scene(const std::filesystem::path& file, const SceneLimits& limits = {},
+                 const std::filesystem::path& mesh_cache_dir = {});
+
+// The scene's "name" (by default the file's stem), as load_scene reads it: the default output
+// folder is out/<name>.
+std::string scene_name(const std::filesystem::path& file);
 
 }  // namespace nexdyn
