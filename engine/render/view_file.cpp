@@ -39,7 +39,7 @@ SceneView scene_view(const Scene& scene) {
     RenderCamera camera;
     camera.position = c.position;
     camera.target = c.target;
-    camera.up = c.up.norm() > 0.0 ? c.up : view.up;
+    camera.up = c.up;  // the scene loader filled a missing up from gravity
     camera.fov_deg = c.fov_deg;
     view.camera = camera;
   }

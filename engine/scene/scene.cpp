@@ -13,6 +13,7 @@
 #include "engine/scene/json_reader.hpp"
 #include "engine/scene/settings_readers.hpp"
 
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include <fstream>
@@ -54,6 +55,14 @@ void read_settings(const json& root, const Where& w, Scene& scene) {
   if (root.contains("solver")) read_solver(root["solver"], w["solver"], scene.solver);
   if (root.contains("contact")) read_contact(root["contact"], w["contact"], scene.contact);
   if (root.contains("output")) read_output(root["output"], w["output"], scene.output);
+  // A camera without "up" takes the direction against gravity, known only now.
+  if (scene.output.camera && scene.output.camera->up.norm() == 0.0) {
+    CameraSettings& camera = *scene.output.camera;
+    camera.up = scene.model.gravity.norm() > 0.0 ? Eigen::Vector3d(-scene.model.gravity.normalized())
+                                                 : Eigen::Vector3d::UnitY();
+    if (camera.up.cross(camera.target - camera.position).norm() == 0.0)
+      w["output"]["camera"].fail("looks straight along the up direction (against gravity); give \"up\"");
+  }
   // IPC's barrier lives inside the implicit solve: an explicit step (beta = 0) has no
   // minimisation to add it to, so it could not keep bodies apart.
   if (scene.contact.enabled && scene.time.integrator.is_explicit())

@@ -77,7 +77,7 @@ struct ContactSettings {
 struct CameraSettings {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // [m]
   Eigen::Vector3d target = Eigen::Vector3d::Zero();    // [m], the point at the picture's centre
-  Eigen::Vector3d up = Eigen::Vector3d::Zero();        // zero: against gravity (+y without gravity)
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();        // not given: against gravity (+y without)
   double fov_deg = 40.0;                               // vertical field of view
 };
 

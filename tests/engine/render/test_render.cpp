@@ -179,6 +179,34 @@ TEST_CASE("render: VTU frames read back to what the run wrote, and bad ones are 
                        std::runtime_error);
 }
 
+TEST_CASE("render: output.camera reaches view.json, and a bad one is refused naming the key") {
+  const std::string head = R"({"gravity": [0, 0, -9.81],
+    "materials": {"m": {"model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000}},
+    "bodies": [{"box": {"size": [1, 1, 1], "cells": [1, 1, 1]}, "material": "m"}],)";
+  const Scene scene = test::scene_from_json(head + R"("output": {"camera": {"position": [3, -4, 2],
+    "target": [0, 0, 0.5], "fov_deg": 30}}})", "camera");
+  const SceneView view = scene_view(scene);
+  CHECK(view.up == Eigen::Vector3d::UnitZ());  // against gravity
+  REQUIRE(view.camera.has_value());
+  CHECK(view.camera->position == Eigen::Vector3d(3, -4, 2));
+  CHECK(view.camera->target == Eigen::Vector3d(0, 0, 0.5));
+  CHECK(view.camera->up == Eigen::Vector3d::UnitZ());
+  CHECK(view.camera->fov_deg == 30.0);
+  // view.json carries it unchanged.
+  const auto dir = test::temp_dir("view");
+  test::write_text(dir / "view.json", view_document(view));
+  const SceneView back = read_view(dir);
+  REQUIRE(back.camera.has_value());
+  CHECK(back.camera->position == view.camera->position);
+  CHECK(back.camera->fov_deg == 30.0);
+  CHECK_THROWS_WITH_AS(test::scene_from_json(head + R"("output": {"camera": {"position": [3, -4, 2]}}})", "c2"),
+                       doctest::Contains("output.camera: needs \"position\" and \"target\""), SceneError);
+  CHECK_THROWS_WITH_AS(test::scene_from_json(head + R"("output": {"camera": {"position": [0, 0, 2],
+    "target": [0, 0, 0]}}})", "c3"), doctest::Contains("output.camera: looks straight along the up"), SceneError);
+  test::write_text(dir / "view.json", "{\"format\": 1}");
+  CHECK_THROWS_WITH_AS(read_view(dir), doctest::Contains("view.json: malformed"), std::runtime_error);
+}
+
 // A short run of cube_drop (contact with a plane) to render.
 std::filesystem::path cube_drop_run(const std::string& tag) {
   const auto dir = test::temp_dir(tag);
