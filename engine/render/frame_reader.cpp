@@ -112,7 +112,7 @@ FrameData read_vtu_frame(const std::filesystem::path& file) {
   try {
     bytes = read_mesh_file(file);
   } catch (const std::exception& e) {
-    throw std::runtime_error(file.string() + ": cannot read the frame");
+    throw std::runtime_error(std::string(e.what()) + " (a frame listed in scene.pvd)");
   }
   return parse_vtu_frame(bytes, file.string());
 }

@@ -2,6 +2,7 @@
 // child process, stats.csv read back.
 #pragma once
 
+#include "engine/mesh/mesh_error.hpp"
 #include "engine/run.hpp"
 #include "engine/solver/hessian_pattern.hpp"
 #include "engine/scene/scene.hpp"
@@ -27,6 +28,18 @@ namespace nexdyn::test {
 // speed would accept 50 mm/s). relative(v, e) accepts |a - v| < e max(|a|, |v|) (and a = v = 0).
 inline doctest::Approx relative(double value, double tolerance) {
   return doctest::Approx(value).epsilon(tolerance).scale(std::numeric_limits<double>::min());
+}
+
+// The message of the MeshError that fn() throws, or "<no MeshError thrown>": the mesh reader
+// tests compare whole one-line messages.
+template <typename Fn>
+std::string mesh_error_of(Fn&& fn) {
+  try {
+    fn();
+  } catch (const MeshError& error) {
+    return error.what();
+  }
+  return "<no MeshError thrown>";
 }
 
 // A fresh empty folder under the system temp dir, unique per call.

@@ -20,6 +20,7 @@
 
 namespace fs = std::filesystem;
 using namespace nexdyn;
+using nexdyn::test::mesh_error_of;
 using nexdyn::test::count_components;
 using nexdyn::test::count_non_positive_tets;
 using nexdyn::test::divergence_volume;
@@ -31,16 +32,6 @@ namespace {
 
 const fs::path kSharedMeshes = fs::path(NEXDYN_SHARED_DATA_DIR) / "meshes";
 const fs::path kTestMeshes = fs::path(NEXDYN_SOURCE_DIR) / "tests" / "data" / "meshes";
-
-template <typename Fn>
-std::string mesh_error_of(Fn&& fn) {
-  try {
-    fn();
-  } catch (const MeshError& error) {
-    return error.what();
-  }
-  return "<no MeshError thrown>";
-}
 
 bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;

@@ -34,21 +34,12 @@
 
 namespace fs = std::filesystem;
 using namespace nexdyn;
+using nexdyn::test::mesh_error_of;
 
 namespace {
 
 const fs::path kSurfaces = fs::path(NEXDYN_SOURCE_DIR) / "tests" / "data" / "meshes" / "surfaces";
 const fs::path kSharedMeshes = fs::path(NEXDYN_SHARED_DATA_DIR) / "meshes";
-
-template <typename Fn>
-std::string mesh_error_of(Fn&& fn) {
-  try {
-    fn();
-  } catch (const MeshError& error) {
-    return error.what();
-  }
-  return "<no MeshError thrown>";
-}
 
 std::string stl_error(const std::string& bytes) {
   return mesh_error_of([&] { parse_stl(bytes, "in.stl"); });
