@@ -4,12 +4,34 @@
 #include "bvh/broad_phase.hpp"
 
 #include <limits>
+#include <mutex>
 
 namespace nexdyn {
+
+namespace {
+
+#if NEXDYN_PARALLEL_STD_THREADS
+// ThreadSanitizer builds (engine/parallel.hpp): `nexdyn render --all` builds scenes on several
+// threads at once, and Embree's allocator hands blocks between them under its own locks, which
+// TSan cannot see (Embree is not instrumented) and reports as races. There the builds and
+// releases take turns; the ray queries, which allocate nothing, stay parallel.
+std::mutex& embree_build_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+struct BuildTurn {
+  std::lock_guard<std::mutex> lock{embree_build_mutex()};
+};
+#else
+struct BuildTurn {};
+#endif
+
+}  // namespace
 
 RayScene::RayScene(std::span<const float> positions, std::span<const uint32_t> triangles)
     : positions_(positions.begin(), positions.end()), triangles_(triangles.begin(), triangles.end()) {
   positions_.push_back(0.0f);
+  [[maybe_unused]] const BuildTurn turn;
   const EmbreeDevice& device = EmbreeDevice::instance();
   scene_ = rtcNewScene(device.get());
   // Robust: rays through a shared edge or vertex still hit one of its triangles, so a picture has
@@ -32,6 +54,7 @@ RayScene::RayScene(std::span<const float> positions, std::span<const uint32_t> t
 }
 
 RayScene::~RayScene() {
+  [[maybe_unused]] const BuildTurn turn;
   if (scene_ != nullptr) rtcReleaseScene(scene_);
 }
 
