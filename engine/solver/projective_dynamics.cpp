@@ -402,7 +402,10 @@ PdResult ProjectiveDynamics::solve(double s, double dt, const std::vector<double
   PdResult result;
   if (num_free_ == 0) return result;
   const bool chebyshev = settings_.chebyshev;
-  const double rho = chebyshev ? spectral_radius(s) : 0.0;
+  const bool measure_rho = chebyshev && settings_.rho_from_iterations && !(settings_.rho > 0.0);
+  double rho = chebyshev && !measure_rho ? spectral_radius(s) : 0.0;
+  std::vector<double> residuals;  // max|p| of the plain iterations, for measure_rho
+  bool measured = false;
   const double gamma = chebyshev ? settings_.under_relaxation : 1.0;
   const int64_t ndofs = model_.num_dofs();
 
@@ -447,8 +450,18 @@ PdResult ProjectiveDynamics::solve(double s, double dt, const std::vector<double
       x.swap(xhat);
       continue;
     }
-    if (accelerated < kPlainIterations) omega = 1.0;
-    else if (accelerated == kPlainIterations) omega = 2.0 / (2.0 - rho * rho);
+    if (accelerated < kPlainIterations) {
+      omega = 1.0;
+      residuals.push_back(max_step);
+    } else if (accelerated == kPlainIterations) {
+      if (measure_rho && !measured && residuals.size() > kRateIterations) {  // once per step
+        measured = true;
+        const size_t n = residuals.size();
+        const double rate = std::pow(residuals[n - 1] / residuals[n - 1 - kRateIterations], 1.0 / kRateIterations);
+        rho = std::isfinite(rate) ? std::clamp(1.0 - (1.0 - rate) / gamma, 0.0, 0.9999) : 0.0;
+      }
+      omega = 2.0 / (2.0 - rho * rho);
+    }
     else omega = 4.0 / (4.0 - rho * rho * omega);
     ++accelerated;
     for (int32_t v : free_vertex_)

@@ -46,7 +46,10 @@
 // steps): the largest eigenvalue of A^-1 (A - H_rest), H_rest = the true Hessian at the rest
 // shape (2 mu times the projector onto symmetric F, so A - H_rest = s sum 2 mu V G^T P_skew G),
 // found by Lanczos in the A inner product (the operator is self-adjoint there) from a fixed
-// start vector. It is cached per s. A change of the plane active set changes A, so the
+// start vector. It is cached per s. Or (rho_from_iterations) from the current step alone: the
+// decay rate of the residual over the last kRateIterations plain iterations before Chebyshev
+// starts, undone for the under-relaxation (rate = 1 - gamma (1 - rho)); a function of the step's
+// own inputs, so it is checkpoint-safe too. A change of the plane active set changes A, so the
 // recurrence restarts (omega = 1) there.
 //
 // Stopping rule, the engine's (solver/newton.hpp): converged when max|xhat^{k+1} - x^k| / dt <
@@ -72,6 +75,8 @@ struct PdSettings {
   int max_iterations = 2000;
   bool chebyshev = true;
   double rho = 0.0;               // spectral radius for Chebyshev, in (0, 1); 0: estimated
+  bool rho_from_iterations = false;  // estimate rho from this step's plain iterations instead of
+                                     // the rest shape (see the top of the file)
   double under_relaxation = 0.9;  // gamma of Wang 2015 (used with Chebyshev only)
   double plane_margin = -1.0;     // [m] band in front of a plane that activates its constraint;
                                   // < 0: 1e-6 of the model's bounding-box diagonal
@@ -109,6 +114,8 @@ class ProjectiveDynamics {
   // by less than kRhoTolerance relative.
   static constexpr int kMaxLanczosSteps = 120;
   static constexpr double kRhoTolerance = 1e-4;
+  // Plain iterations whose residuals give the rate of rho_from_iterations.
+  static constexpr int kRateIterations = 4;
 
   // Keeps a reference to the model. Builds the pattern and the symbolic analysis (throws
   // std::length_error beyond HessianPattern's size, like the engine's assembly: set-up, not step).
