@@ -35,8 +35,8 @@
 // the margin band (P(x) = x) is held in place for one global step, which keeps a resting contact
 // (projected onto the plane at the end of the last step, distance 0) in the active set instead
 // of letting it fall through first; the default margin is tiny for that reason.
-// Joints are not supported (the caller refuses scenes with joints); contact between meshes isn't
-// either.
+// Joints are not supported: this class ignores Model::joints, so a caller must refuse scenes
+// with joints; contact between meshes (IPC barrier, friction) is not handled either.
 //
 // Chebyshev (Wang 2015): after kPlainIterations plain iterations,
 //   x^{k+1} = omega_{k+1} (gamma (xhat^{k+1} - x^k) + x^k - x^{k-1}) + x^{k-1},
@@ -106,7 +106,7 @@ struct PdStats {
 class ProjectiveDynamics {
  public:
   // Plain iterations before Chebyshev starts: Wang 2015 waits until the iterates behave like a
-  // linear iteration (its S); ten were enough on every scene we measured.
+  // linear iteration (its S, about 10); measured on the cantilever only.
   static constexpr int kPlainIterations = 10;
   // Plane constraint weight relative to the vertex's diagonal of A (see the top of the file).
   static constexpr double kPlaneWeight = 100.0;
