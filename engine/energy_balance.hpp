@@ -1,6 +1,7 @@
 // The energy balance of a step (issue 16): where the change of the total energy came from.
 //
-//   total_{n+1} - total_n = boundary_work - friction_dissipated + kappa_energy + integrator_energy
+//   total_{n+1} - total_n = boundary_work - friction_dissipated - damping_dissipated + kappa_energy
+//                           + integrator_energy
 //
 // total = kinetic + elastic + gravity + kappa B, the total_energy column of stats.csv.
 // - boundary_work: what the held vertices (moving boundaries, kinematic obstacles) did on the
@@ -11,6 +12,9 @@
 //   step (engine/incremental_potential.hpp). Fixed vertices do no work.
 // - friction_dissipated: grad D(x_{n+1}) . (x_{n+1} - x_n) over all vertices = sum over the
 //   friction contacts of mu N f1(|u|) |u| >= 0, the lagged friction force times the slip.
+// - damping_dissipated: the work of the Rayleigh damping force -D v over the step, by the
+//   trapezoidal rule over its two ends, as Newmark treats every force (>= 0 up to that rule's
+//   error). stats.csv reports its running sum since the start.
 // - kappa_energy: (kappa_{n+1} - kappa_n) B(x_{n+1}): the barrier energy that a raised barrier
 //   stiffness added at the configuration it was raised in, not earned by any motion.
 // - integrator_energy: the rest, what the time integration itself created (> 0) or took out
@@ -29,12 +33,14 @@ namespace nexdyn {
 struct EnergyBalance {
   double boundary_work = 0.0;        // [J] put in by moving boundaries and obstacles
   double friction_dissipated = 0.0;  // [J] taken out by friction (>= 0)
+  double damping_dissipated = 0.0;   // [J] taken out by Rayleigh damping (stats.csv: cumulative)
   double kappa_energy = 0.0;         // [J] put in by raising the barrier stiffness
   double integrator_energy = 0.0;    // [J] put in (> 0) or taken out (< 0) by the time integration
 
   EnergyBalance& operator+=(const EnergyBalance& o) {
     boundary_work += o.boundary_work;
     friction_dissipated += o.friction_dissipated;
+    damping_dissipated += o.damping_dissipated;
     kappa_energy += o.kappa_energy;
     integrator_energy += o.integrator_energy;
     return *this;

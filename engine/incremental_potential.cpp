@@ -176,6 +176,11 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
     if (term->hessian() == TermHessian::diagonal) term->add_diagonal(x, weight(*term), merged, values, subset);
 }
 
+void IncrementalPotential::gradient(const double* x, double* grad) {
+  std::fill(grad, grad + model_.num_dofs(), 0.0);
+  for (const auto& term : terms_) term->add_gradient(x, weight(*term), grad);
+}
+
 double IncrementalPotential::max_step(const double* x, const double* p) {
   double alpha = 1.0;
   for (const auto& term : terms_) alpha = std::min(alpha, term->max_step(x, p));

@@ -98,6 +98,8 @@ class IncrementalPotential {
   // others hold leftovers that the caller must not use.
   void gradient_hessian(const double* x, double* grad, double* hessian_values,
                         const ActiveSubset* subset = nullptr);
+  // Gradient alone (3n, written), every vertex.
+  void gradient(const double* x, double* grad);
   // Largest fraction of the step p from x that every term allows (1 without contact).
   double max_step(const double* x, const double* p);
   // max_step for independent groups of vertices (barrier_potential.hpp): sweep(x, p) finds the

@@ -18,9 +18,20 @@
 
 namespace nexdyn {
 
+// Rayleigh damping D = stiffness K(x_n) + mass M (seed 004): the force -D v_{n+1}.
+struct RayleighDamping {
+  double mass = 0.0;       // a2 [1/s]
+  double stiffness = 0.0;  // a1 [s]
+  bool any() const { return mass > 0.0 || stiffness > 0.0; }
+};
+
 struct Material {
   std::string name;
   MaterialModel model = MaterialModel::neohookean;
+  // "arap": Psi = mu ||F - R||^2 (Wang 2015), which is the corotated model with lambda = 0; it
+  // runs the corotated kernels with lame.lambda = 0.
+  bool arap = false;
+  RayleighDamping damping;
   LameParameters lame;
   double youngs = 0.0;   // [Pa]
   double poisson = 0.0;  // [-]

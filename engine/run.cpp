@@ -66,8 +66,8 @@ std::string stats_row(const StepStats& s) {
   }
   row += "," + std::to_string(s.retries);
   const EnergyBalance& b = s.balance;
-  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g,%d,%d", b.boundary_work, b.friction_dissipated,
-                b.kappa_energy, b.integrator_energy, s.guarded_steps, s.sleeping_bodies);
+  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g,%d,%d,%.17g", b.boundary_work, b.friction_dissipated,
+                b.kappa_energy, b.integrator_energy, s.guarded_steps, s.sleeping_bodies, s.damping_dissipated);
   return row + buf;
 }
 

@@ -41,11 +41,13 @@ inline constexpr const char* kStatsHeader =
     "momentum_x,momentum_y,momentum_z,newton_iterations,contacts,min_distance,wall_seconds";
 // The energy balance of each step (engine/energy_balance.hpp), the last columns: the change of
 // total_energy from the row before (or from the start) is
-// boundary_work - friction_dissipated + kappa_energy + integrator_energy; then guarded_steps,
-// the (sub)steps the energy guard retook with implicit Euler, and sleeping_bodies, the bodies
-// asleep at the end of the step (engine/sleeping.hpp).
+// boundary_work - friction_dissipated + kappa_energy + integrator_energy - (the change of
+// damping_dissipated); then guarded_steps, the (sub)steps the energy guard retook with implicit
+// Euler, sleeping_bodies, the bodies asleep at the end of the step (engine/sleeping.hpp), and
+// damping_dissipated, the energy Rayleigh damping has taken out since the start (cumulative).
 inline constexpr const char* kBalanceColumns =
-    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps,sleeping_bodies";
+    ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps,sleeping_bodies,"
+    "damping_dissipated";
 
 // timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
 // the rest of the step, of writing its stats row and frames, and the total, in milliseconds.

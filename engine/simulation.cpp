@@ -46,7 +46,9 @@ constexpr double kFrictionLagTolerance = 1e-3;
 constexpr double kSleepToleranceRatio = 10.0;
 
 std::unique_ptr<BarrierPotential> make_contact(const Scene& scene) {
-  if (!scene.contact.enabled) return nullptr;
+  // Projective Dynamics keeps bodies off plane obstacles by its own projections, not by the
+  // barrier (the scene refuses every other contact for it).
+  if (!scene.contact.enabled || scene.solver.method == SolverMethod::projective_dynamics) return nullptr;
   return std::make_unique<BarrierPotential>(scene.model, resolved_dhat(scene));
 }
 
@@ -78,6 +80,11 @@ Simulation::Simulation(const Scene& scene)
     sleeping_ = std::make_unique<SleepingBodies>(model_, history_, rest_speed, sleep.steps, contact_->dhat());
   }
   if (!kinematic_.empty()) potential_.set_kinematic(&kinematic_);
+  if (DampingTerm::wanted(model_)) {
+    auto damping = std::make_unique<DampingTerm>(model_, elastic_.pattern(), state_);
+    damping_ = damping.get();
+    potential_.add_term(std::move(damping));
+  }
   potential_.set_profile(&profile_);
   if (contact_) contact_->set_profile(&profile_);
   const int64_t n = model_.num_dofs();
@@ -91,6 +98,10 @@ Simulation::Simulation(const Scene& scene)
   if (scene.time.consistent_initial_acceleration && !scene.time.integrator.is_static) {
     if (!explicit_acceleration(state_.x, state_.a))
       throw SceneError(scene.file.string() + ": the initial state has non-finite forces (inverted tet?)");
+    if (damping_) {
+      damping_->prepare_at_state();
+      damping_->add_explicit_acceleration(state_.v.data(), state_.a.data());
+    }
     if (!joints_.empty()) constrain_initial_acceleration();
   }
   if (!joints_.empty()) {
@@ -140,8 +151,10 @@ StepOutcome Simulation::step() {
     }
     // What the named terms do not explain is the time integration's own doing.
     balance_.integrator_energy = (stats_.total_energy - history_.energy_before) - balance_.boundary_work +
-                                 balance_.friction_dissipated - balance_.kappa_energy;
+                                 balance_.friction_dissipated + balance_.damping_dissipated -
+                                 balance_.kappa_energy;
     stats_.balance = balance_;
+    stats_.damping_dissipated = history_.damping_dissipated;
     history_.energy_before = stats_.total_energy;
   }
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -240,6 +253,15 @@ StepOutcome Simulation::explicit_update(const StepContext& ctx) {
   if (!explicit_acceleration(x_next_, a_next_))
     return {StepStatus::non_finite, "non-finite forces after the explicit update (the step is above the "
                                     "stability limit or a tet inverted)"};
+  if (damping_) {
+    // The damping force at the velocity known before the step's end: v_n + h (1 - gamma) a_n.
+    damping_->prepare_at_state();
+    remember_damping_force();
+    const IntegratorParams& p = *ctx.scheme;
+    motion_ = state_.v;
+    for (size_t i = 0; i < motion_.size(); ++i) motion_[i] += ctx.dt * (1.0 - p.gamma) * state_.a[i];
+    damping_->add_explicit_acceleration(motion_.data(), a_next_.data());
+  }
   update_explicit(*ctx.scheme, ctx.dt, a_next_, state_.v, state_.a, state_.a_bar);
   return {};
 }
@@ -251,6 +273,8 @@ StepOutcome Simulation::implicit_solve(const StepContext& ctx, int& iterations) 
     x_next_ = state_.x;
     return {};
   }
+  if (scene_.solver.method == SolverMethod::linearized) return linearized_solve(ctx, iterations);
+  if (scene_.solver.method == SolverMethod::projective_dynamics) return projective_dynamics_solve(ctx, iterations);
   prepare_terms(ctx);
   const StepOutcome outcome = start_point(ctx);
   if (outcome.status != StepStatus::ok) return outcome;
@@ -260,6 +284,46 @@ StepOutcome Simulation::implicit_solve(const StepContext& ctx, int& iterations) 
   return outcome;
 }
 
+StepOutcome Simulation::linearized_solve(const StepContext& ctx, int& iterations) {
+  if (!linearized_) {
+    const SolverSettings& solver = scene_.solver;
+    linearized_ = std::make_unique<LinearizedStep>(model_, solver.linear, solver.tolerance,
+                                                   std::max(solver.max_iterations, 10000));
+  }
+  prepare_terms(ctx);
+  x_next_ = state_.x;
+  prescribe(ctx.t_end, x_next_, nullptr, nullptr, nullptr);
+  const LinearizedResult result = linearized_->solve(potential_, ctx, damping_, x_next_);
+  if (result.status != StepStatus::ok) return {result.status, result.message};
+  iterations += 1;
+  // Nothing bounded the step: a tet it inverted fails the attempt (retried at half the dt).
+  if (!std::isfinite(elastic_.energy(x_next_.data())))
+    return {StepStatus::non_finite, "the linearised step inverted a tet"};
+  update_after_solve(ctx);
+  return {};
+}
+
+StepOutcome Simulation::projective_dynamics_solve(const StepContext& ctx, int& iterations) {
+  if (!pd_) {
+    const SolverSettings& solver = scene_.solver;
+    PdSettings settings;
+    settings.tolerance = solver.tolerance;
+    settings.max_iterations = std::max(solver.max_iterations, 2000);
+    settings.chebyshev = solver.chebyshev;
+    settings.rho = solver.chebyshev_rho;
+    pd_ = std::make_unique<ProjectiveDynamics>(model_, settings);
+  }
+  // From the predictor, the held vertices at their targets.
+  x_next_ = state_.x_tilde;
+  prescribe(ctx.t_end, x_next_, nullptr, nullptr, nullptr);
+  const PdResult result = pd_->solve(ctx.potential_scale, ctx.dt, state_.x_tilde, x_next_);
+  iterations += result.iterations;
+  if (result.status != StepStatus::ok) return {result.status, "Projective Dynamics: " + result.message};
+  // The plane constraints' forces are smooth forces of the step here, not impulses.
+  update_implicit(*ctx.scheme, ctx.dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
+  return {};
+}
+
 void Simulation::prepare_terms(const StepContext& ctx) {
   if (!newton_) {
     newton_ = std::make_unique<NewtonSolver>(model_, potential_);
@@ -267,6 +331,7 @@ void Simulation::prepare_terms(const StepContext& ctx) {
   }
   hold_sleeping();
   potential_.begin_step(state_.x_tilde, ctx);
+  if (damping_) remember_damping_force();
   // The start-of-step contact force's part of the step: x_tilde += (alpha - r) h^2 M^-1 f_n.
   const std::vector<double>& memory = history_.contact_memory;
   if (contact_ && ctx.contact_memory_scale != 0.0 && !memory.empty()) {
@@ -454,6 +519,7 @@ void Simulation::update_with_contact(const StepContext& ctx) {
   // close to the positions as the tolerance, as implicit Euler's does.
   a_next_ = state_.a;  // held vertices keep theirs until finish()
   explicit_acceleration(x_next_, a_next_);
+  if (damping_) damping_->add_step_acceleration(x_next_.data(), a_next_.data());  // not an impulse
   potential_.impulsive_forces(x_next_.data(), impulse_);  // the forces, for joints and the balance
   const std::vector<double>& joint = potential_.joint_force();
   const IntegratorParams& p = *ctx.scheme;

@@ -27,6 +27,9 @@
 #include "engine/elastic_assembly.hpp"
 #include "engine/energy_balance.hpp"
 #include "engine/incremental_potential.hpp"
+#include "engine/solver/linearized_step.hpp"
+#include "engine/solver/projective_dynamics.hpp"
+#include "engine/terms/damping_term.hpp"
 #include "engine/kinematic_targets.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/sleeping.hpp"
@@ -70,6 +73,7 @@ struct StepStats {
   EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
   int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
   int32_t sleeping_bodies = 0;  // bodies asleep at the end of the step (engine/sleeping.hpp)
+  double damping_dissipated = 0.0;  // [J] taken out by Rayleigh damping since the start
 };
 
 struct StepOutcome {
@@ -120,6 +124,11 @@ class Simulation {
   StepContext choose_scheme(double dt, double t_next, int level);
   StepOutcome explicit_update(const StepContext& ctx);
   StepOutcome implicit_solve(const StepContext& ctx, int& iterations);
+  // "solver.method": "linearized": one linear solve from x_n (engine/solver/linearized_step.hpp).
+  StepOutcome linearized_solve(const StepContext& ctx, int& iterations);
+  // "solver.method": "projective_dynamics": local-global iterations from x_tilde
+  // (engine/solver/projective_dynamics.hpp); plane obstacles are its own projections.
+  StepOutcome projective_dynamics_solve(const StepContext& ctx, int& iterations);
   void prepare_terms(const StepContext& ctx);
   // Newton's starting point for the step (written into x_next_).
   StepOutcome start_point(const StepContext& ctx);
@@ -171,6 +180,11 @@ class Simulation {
   // out before may be spent again), and the attempt must be retaken with implicit Euler;
   // otherwise the attempt is booked and false. balance_before: balance_ before the attempt.
   bool guard_energy(const EnergyBalance& balance_before);
+  // Rayleigh damping: the force at the start of the run's first step (the end of the step
+  // before it, otherwise), once the step's D is known; and the work of the damping force over
+  // the attempt's motion x_old -> x_new, booked in balance_ and the history.
+  void remember_damping_force();
+  void account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new);
   // The measure stage: measure(), with the contact summary taken by the barrier itself, which
   // leaves its candidates at a static search of x for the next step's first search.
   void measure_step(StepStats& stats);
@@ -191,7 +205,10 @@ class Simulation {
   std::unique_ptr<SleepingBodies> sleeping_;  // null without contact or with sleeping off
   std::vector<int32_t> held_asleep_;          // the vertices Newton holds because they sleep
   IncrementalPotential potential_;
+  DampingTerm* damping_ = nullptr;  // in potential_; null without damping
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
+  std::unique_ptr<LinearizedStep> linearized_;  // "solver.method": "linearized", built lazily
+  std::unique_ptr<ProjectiveDynamics> pd_;      // "solver.method": "projective_dynamics", lazily
   double joint_tolerance_ = 0.0;          // [m]
   bool kinematic_on_target_ = false;      // this attempt's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces

@@ -25,6 +25,26 @@ void Simulation::account_energy(const std::vector<double>& x_old, const std::vec
   balance_.friction_dissipated += friction_dissipation(x_old, x_new, friction_force);
   const double kappa = potential_.barrier_stiffness();
   if (contact_ && kappa != kappa_before) balance_.kappa_energy += (kappa - kappa_before) * contact_->energy(x_new.data());
+  if (damping_) account_damping(x_old, x_new);
+}
+
+void Simulation::remember_damping_force() {
+  if (!history_.damping_force.empty()) return;
+  history_.damping_force.resize(model_.num_dofs());
+  damping_->force(state_.v.data(), history_.damping_force.data());
+}
+
+void Simulation::account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new) {
+  if (scene_.time.integrator.is_static) return;
+  // state_.v is v_{n+1} by now; D is this step's.
+  std::vector<double> force(model_.num_dofs());
+  damping_->force(state_.v.data(), force.data());
+  const std::vector<double>& before = history_.damping_force.empty() ? force : history_.damping_force;
+  double work = 0.0;
+  for (size_t i = 0; i < force.size(); ++i) work += (x_new[i] - x_old[i]) * 0.5 * (before[i] + force[i]);
+  balance_.damping_dissipated -= work;
+  history_.damping_dissipated -= work;
+  history_.damping_force = std::move(force);
 }
 
 Simulation::MotionSums Simulation::motion_sums() const {
@@ -55,7 +75,8 @@ bool Simulation::guard_energy(const EnergyBalance& balance_before) {
   // balance's named terms (boundary work, friction, kappa) do not explain.
   const Energies end = energies_now();
   const double boundary_work = balance_.boundary_work - balance_before.boundary_work;
-  const double explained = boundary_work - (balance_.friction_dissipated - balance_before.friction_dissipated) +
+  const double explained = boundary_work - (balance_.friction_dissipated - balance_before.friction_dissipated) -
+                           (balance_.damping_dissipated - balance_before.damping_dissipated) +
                            (balance_.kappa_energy - balance_before.kappa_energy);
   // Less an allowance for the error of the trapezoidal boundary work, 1e-3 of it (its relative
   // error is about (h omega)^2 / 12 for a boundary turning at omega: 4e-5 on bar_twist).

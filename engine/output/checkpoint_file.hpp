@@ -30,7 +30,7 @@ namespace nexdyn {
 
 // 2: generalized-alpha history and the energy balance; 3: the energy guard's record;
 // 4: State and StepHistory (engine/output/step_checkpoint.hpp)
-inline constexpr uint32_t kCheckpointFormat = 5;
+inline constexpr uint32_t kCheckpointFormat = 6;
 
 // A checkpoint that cannot be used: unreadable, truncated, corrupt, or from another scene.
 struct CheckpointError : std::runtime_error {

@@ -73,6 +73,42 @@ void read_settings(const json& root, const Where& w, Scene& scene) {
   if (has_obstacles && !scene.contact.enabled) w["obstacles"].fail("obstacles need contact; add \"contact\": {}");
 }
 
+// What "linearized" and "projective_dynamics" do not support is refused here, naming the key
+// that asks for it (docs/scenes.md, "solver.method").
+void check_solver_method(const Where& w, const Scene& scene) {
+  const SolverMethod method = scene.solver.method;
+  if (method == SolverMethod::newton) return;
+  const Where where = w["solver"]["method"];
+  const std::string name = method == SolverMethod::linearized ? "linearized" : "projective_dynamics";
+  const IntegratorParams& scheme = scene.time.integrator;
+  if (scheme.is_static || scheme.is_explicit())
+    where.fail("\"" + name + "\" solves implicit steps; the integrator \"" + scheme.name + "\" is " +
+               (scheme.is_static ? "static" : "explicit"));
+  if (!scene.model.joints.empty()) where.fail("\"" + name + "\" does not support \"joints\" (use \"newton\")");
+  if (method == SolverMethod::linearized && scene.contact.enabled)
+    where.fail("\"linearized\" does not support contact (use \"newton\")");
+  if (method == SolverMethod::projective_dynamics) {
+    if (scene.contact.has_friction())
+      where.fail("\"projective_dynamics\" does not support friction (use \"newton\")");
+    int32_t tet_bodies = 0;
+    for (const BodyRange& body : scene.model.bodies) {
+      if (body.obstacle)
+        where.fail("\"projective_dynamics\" supports plane obstacles only, not obstacle meshes (use \"newton\")");
+      ++tet_bodies;
+    }
+    if (scene.contact.enabled && tet_bodies > 1)
+      where.fail("\"projective_dynamics\" supports contact with plane obstacles only, not between bodies "
+                 "(use \"newton\")");
+    for (const Material& m : scene.model.materials) {
+      if (!m.arap)
+        w["materials"][m.name]["model"].fail("\"projective_dynamics\" needs the \"arap\" model, not \"" +
+                                             std::string(material_model_name(m.model)) + "\"");
+      if (m.damping.any())
+        w["materials"][m.name]["damping"].fail("\"projective_dynamics\" does not support damping (use \"newton\")");
+    }
+  }
+}
+
 // The start of the run: at rest positions with the bodies' velocities (already in initial.v) and
 // zero acceleration (the simulation sets the consistent one). With contact, the start must be
 // free of intersections.
@@ -110,6 +146,7 @@ Scene load_scene(const fs::path& file, const SceneLimits& limits, const fs::path
 
   build_model(root, w, file.parent_path(), material_ids, limits, scene.contact.enabled, mesh_cache_dir, scene.model,
               scene.initial);
+  check_solver_method(w, scene);
   set_initial_state(scene);
   return scene;
 }

@@ -40,7 +40,20 @@ struct SleepSettings {
   int steps = 10;         // steps at rest before a contact group sleeps
 };
 
+// How an implicit step is solved ("solver.method"; docs/scenes.md says what each supports).
+enum class SolverMethod : uint8_t {
+  newton,               // Newton on the incremental potential with every term (the default)
+  linearized,           // one linear solve of the potential's quadratic model at x_n (Baraff-Witkin)
+  projective_dynamics,  // local-global iterations on the arap energy (engine/solver/projective_dynamics.hpp)
+};
+// The linear solver of "linearized" ("solver.linear").
+enum class LinearSolverKind : uint8_t { cholmod, pcg };
+
 struct SolverSettings {
+  SolverMethod method = SolverMethod::newton;
+  LinearSolverKind linear = LinearSolverKind::cholmod;
+  bool chebyshev = true;     // Projective Dynamics: Chebyshev semi-iterative acceleration
+  double chebyshev_rho = 0;  // its spectral radius; 0 = estimated
   double tolerance = 1e-5;  // [m/s] Newton increment divided by dt
   int max_iterations = 100;
   double joint_tolerance = 0.0;  // [m] largest joint violation accepted; 0 = default, 1e-9 of

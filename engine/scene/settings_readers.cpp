@@ -48,22 +48,36 @@ void read_custom_integrator(const json& j, const Where& w, TimeSettings& time) {
   p.name = "custom";
 }
 
+// "damping": {"mass": a2, "stiffness": a1}, Rayleigh damping D = a1 K + a2 M.
+RayleighDamping read_damping(const json& j, const Where& w) {
+  if (!j.is_object()) w.fail("expected an object with \"mass\" and/or \"stiffness\"", j);
+  check_keys(j, w, {"mass", "stiffness"});
+  RayleighDamping damping;
+  if (j.contains("mass")) damping.mass = non_negative(j["mass"], w["mass"]);
+  if (j.contains("stiffness")) damping.stiffness = non_negative(j["stiffness"], w["stiffness"]);
+  return damping;
+}
+
 Material read_material(const std::string& name, const json& j, const Where& w) {
-  check_keys(j, w, {"model", "youngs", "poisson", "density"});
+  check_keys(j, w, {"model", "youngs", "poisson", "density", "damping"});
   for (const char* key : {"model", "youngs", "poisson", "density"})
     if (!j.contains(key)) w.fail(std::string("missing key \"") + key + "\"");
   Material m;
   m.name = name;
   const std::string model = string(j["model"], w["model"]);
-  const auto parsed = material_model_from_name(model);
+  m.arap = model == "arap";
+  const auto parsed = m.arap ? std::optional(MaterialModel::corotated) : material_model_from_name(model);
   if (!parsed)
-    w["model"].fail("unknown material model " + show(json(model)) + " (known: linear, stvk, corotated, neohookean)");
+    w["model"].fail("unknown material model " + show(json(model)) +
+                    " (known: linear, stvk, corotated, neohookean, arap)");
   m.model = *parsed;
   m.youngs = positive(j["youngs"], w["youngs"]);
   m.poisson = number(j["poisson"], w["poisson"]);
   if (!(m.poisson > -1.0 && m.poisson < 0.5)) w["poisson"].fail("expected -1 < poisson < 0.5", j["poisson"]);
   m.density = positive(j["density"], w["density"]);
   m.lame = lame_from_young_poisson(m.youngs, m.poisson);
+  if (m.arap) m.lame.lambda = 0.0;  // mu ||F - R||^2 has no volume term
+  if (j.contains("damping")) m.damping = read_damping(j["damping"], w["damping"]);
   return m;
 }
 
@@ -118,7 +132,41 @@ void read_time(const json& j, const Where& w, TimeSettings& time) {
 }
 
 void read_solver(const json& j, const Where& w, SolverSettings& solver) {
-  check_keys(j, w, {"tolerance", "max_iterations", "joint_tolerance", "substep_halvings", "sleep"});
+  check_keys(j, w, {"method", "linear", "chebyshev", "tolerance", "max_iterations", "joint_tolerance",
+                    "substep_halvings", "sleep"});
+  if (j.contains("method")) {
+    const std::string method = string(j["method"], w["method"]);
+    if (method == "newton") solver.method = SolverMethod::newton;
+    else if (method == "linearized") solver.method = SolverMethod::linearized;
+    else if (method == "projective_dynamics") solver.method = SolverMethod::projective_dynamics;
+    else w["method"].fail("expected \"newton\", \"linearized\" or \"projective_dynamics\"", j["method"]);
+  }
+  if (j.contains("linear")) {
+    const std::string linear = string(j["linear"], w["linear"]);
+    if (linear == "cholmod") solver.linear = LinearSolverKind::cholmod;
+    else if (linear == "pcg") solver.linear = LinearSolverKind::pcg;
+    else w["linear"].fail("expected \"cholmod\" or \"pcg\"", j["linear"]);
+    if (solver.method != SolverMethod::linearized)
+      w["linear"].fail("belongs to \"method\": \"linearized\" (Newton and Projective Dynamics use CHOLMOD)",
+                       j["linear"]);
+  }
+  if (j.contains("chebyshev")) {
+    const json& c = j["chebyshev"];
+    if (solver.method != SolverMethod::projective_dynamics)
+      w["chebyshev"].fail("belongs to \"method\": \"projective_dynamics\"", c);
+    if (c.is_boolean()) {
+      solver.chebyshev = c.get<bool>();
+    } else if (c.is_object()) {
+      check_keys(c, w["chebyshev"], {"rho"});
+      if (!c.contains("rho")) w["chebyshev"].fail("expected {\"rho\": r} with 0 < r < 1");
+      solver.chebyshev = true;
+      solver.chebyshev_rho = number(c["rho"], w["chebyshev"]["rho"]);
+      if (!(solver.chebyshev_rho > 0.0 && solver.chebyshev_rho < 1.0))
+        w["chebyshev"]["rho"].fail("expected 0 < rho < 1", c["rho"]);
+    } else {
+      w["chebyshev"].fail("expected true, false or {\"rho\": r}", c);
+    }
+  }
   if (j.contains("sleep")) read_sleep(j["sleep"], w["sleep"], solver.sleep);
   if (j.contains("substep_halvings")) {
     // Bounded before the cast to int: 2^32 must not wrap to 0.

@@ -104,7 +104,7 @@ std::string stats_csv(int rows) {
     std::ostringstream row;
     row << i << ',' << t << ',' << 1.0 + t << ',' << 0.5 * t << ',' << -9.81 * t << ",0," << 1.0 - 8.31 * t
         << ",0.1,0,-0.2," << 3 + i % 4 << ',' << (i > 2 ? 4 : 0) << ',' << (i == 1 ? "inf" : "0.0012")
-        << ",0.01," << (i == 3 ? 1 : 0) << ",0,0.001,0,-0.002,0,0\n";
+        << ",0.01," << (i == 3 ? 1 : 0) << ",0,0.001,0,-0.002,0,0,0\n";
     text += row.str();
   }
   return text;
@@ -216,10 +216,10 @@ TEST_CASE("nexdyn plot: a bad stats.csv or timings.csv is one line on stderr and
        "line 5, column \"momentum_x\": \"nan\" is not a finite number"},
       {"inf where it is not min_distance", with_field(good, 2, 6, "inf"), timings_csv(6), "stats.csv",
        "line 2, column \"total_energy\": \"inf\" is not a finite number"},
-      {"a row with a field too few", with_field(good, 3, 20, nullptr), timings_csv(6), "stats.csv",
-       "line 3: 20 fields where the header has 21 (none for column \"sleeping_bodies\")"},
-      {"a row with a field too many", with_field(good, 6, 20, "0,0"), timings_csv(6), "stats.csv",
-       "line 6: 22 fields where the header has 21 (one after the last column \"sleeping_bodies\")"},
+      {"a row with a field too few", with_field(good, 3, 21, nullptr), timings_csv(6), "stats.csv",
+       "line 3: 21 fields where the header has 22 (none for column \"damping_dissipated\")"},
+      {"a row with a field too many", with_field(good, 6, 21, "0,0"), timings_csv(6), "stats.csv",
+       "line 6: 23 fields where the header has 22 (one after the last column \"damping_dissipated\")"},
       {"an empty stats.csv", "", timings_csv(6), "stats.csv", "empty (no header)"},
       {"a header and no rows", good.substr(0, good.find('\n') + 1), timings_csv(6), "stats.csv",
        "no rows (only the header)"},

@@ -1,0 +1,147 @@
+// "solver.method": "linearized" (engine/solver/linearized_step.hpp): one linear solve of the
+// potential's quadratic model per step. It agrees with Newton's implicit Euler to second order
+// in the step, its CHOLMOD and matrix-free conjugate-gradient paths agree to the solver
+// tolerance, and its steps do not depend on the thread count. Also: what the methods do not
+// support is refused with one line naming the key.
+#include "engine/simulation.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+using namespace nexdyn;
+
+namespace {
+
+// The clamped rubber beam of test_analytic_dynamics.cpp under full gravity.
+std::string beam_json(double dt, const std::string& solver, const std::string& material_extra = "") {
+  return R"({
+    "gravity": [0, -9.81, 0],
+    "time": { "dt": )" + std::to_string(dt) + R"(, "integrator": "implicit_euler" },
+    "solver": { "tolerance": 1e-10)" + solver + R"( },
+    "materials": { "rubber": { "model": "neohookean", "youngs": 1e7, "poisson": 0.3, "density": 1000)" +
+         material_extra + R"( } },
+    "bodies": [ { "box": { "size": [2.0, 0.2, 0.2], "cells": [20, 2, 2] }, "material": "rubber" } ],
+    "boundary": [ { "box_min": [-1.001, -1, -1], "box_max": [-0.999, 1, 1], "fix": true } ]
+  })";
+}
+
+// One step from rest shape with the beam swinging up, v_y = 3 ((x + 1) / 2)^2 m/s: large enough
+// a rotation that the linearisation's error shows.
+std::vector<double> one_step(double dt, const std::string& solver) {
+  Scene scene = test::scene_from_json(beam_json(dt, solver), "linearized_step");
+  for (int32_t v = 0; v < scene.model.num_vertices; ++v) {
+    const double s = (scene.model.rest_positions[3 * v] + 1.0) / 2.0;
+    if (scene.model.dirichlet[v] < 0) scene.initial.v[3 * v + 1] = 3.0 * s * s;
+  }
+  Simulation sim(scene);
+  REQUIRE(sim.step().status == StepStatus::ok);
+  return sim.state().x;
+}
+
+// The one-line message of loading the scene, or "<loaded>".
+std::string scene_error_of(const std::string& json) {
+  try {
+    test::scene_from_json(json, "method_refused");
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "<loaded>";
+}
+
+double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  double m = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) m = std::max(m, std::abs(a[i] - b[i]));
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("linearized: one step matches Newton's implicit Euler to second order in dt") {
+  double previous = 0.0;
+  for (double dt : {0.01, 0.005, 0.0025}) {
+    CAPTURE(dt);
+    const double error = max_difference(one_step(dt, R"(, "method": "linearized")"), one_step(dt, ""));
+    MESSAGE("dt = " << dt << ": max |x_linearized - x_newton| = " << error << " m");
+    CHECK(error > 0.0);
+    if (previous > 0.0) {
+      MESSAGE("  ratio to the step twice as long: " << previous / error);
+      CHECK(previous / error > 3.5);  // 4 for O(dt^2)
+    }
+    previous = error;
+  }
+}
+
+TEST_CASE("linearized: conjugate gradients and CHOLMOD agree to the solver tolerance, with damping") {
+  auto run = [](const std::string& linear) {
+    Scene scene = test::scene_from_json(
+        beam_json(0.01, R"(, "method": "linearized", "linear": ")" + linear + "\"",
+                  R"(, "damping": {"mass": 0.5, "stiffness": 0.004})"),
+        "linearized_" + linear);
+    Simulation sim(scene);
+    for (int i = 0; i < 10; ++i) REQUIRE(sim.step().status == StepStatus::ok);
+    return sim.state().x;
+  };
+  const double difference = max_difference(run("cholmod"), run("pcg"));
+  MESSAGE("10 steps: max |x_cholmod - x_pcg| = " << difference << " m");
+  // CG stops at 1e-3 of the tolerance (1e-10 m/s) per step of 0.01 s.
+  CHECK(difference < 10 * 1e-10 * 0.01);
+}
+
+TEST_CASE("linearized: steps are bitwise the same on 1 and 2 threads, CHOLMOD and CG") {
+  for (const char* linear : {"cholmod", "pcg"}) {
+    CAPTURE(linear);
+    auto final_x = [&](int threads) {
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      Scene scene = test::scene_from_json(
+          beam_json(0.01, R"(, "method": "linearized", "linear": ")" + std::string(linear) + "\"",
+                    R"(, "damping": {"mass": 0.5, "stiffness": 0.004})"),
+          "linearized_threads");
+      Simulation sim(scene);
+      for (int i = 0; i < 4; ++i) REQUIRE(sim.step().status == StepStatus::ok);
+      return sim.state().x;
+    };
+    CHECK(final_x(1) == final_x(2));
+  }
+}
+
+TEST_CASE("solver.method: what a method does not support is refused, naming the key") {
+  const std::string contact = R"({
+    "time": { "dt": 0.01 },
+    "solver": { "method": "linearized" },
+    "contact": {},
+    "materials": { "m": { "model": "neohookean", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ]
+  })";
+  CHECK(scene_error_of(contact).find("solver.method") != std::string::npos);
+  CHECK(scene_error_of(contact).find("does not support contact") != std::string::npos);
+  const std::string pd_material = R"({
+    "solver": { "method": "projective_dynamics" },
+    "materials": { "m": { "model": "neohookean", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ]
+  })";
+  CHECK(scene_error_of(pd_material).find("materials.m.model") != std::string::npos);
+  const std::string linear_alone = R"({
+    "solver": { "linear": "pcg" },
+    "materials": { "m": { "model": "arap", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ]
+  })";
+  CHECK(scene_error_of(linear_alone).find("solver.linear") != std::string::npos);
+  const std::string explicit_scheme = R"({
+    "time": { "integrator": "central_difference" },
+    "solver": { "method": "linearized" },
+    "materials": { "m": { "model": "arap", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ]
+  })";
+  CHECK(scene_error_of(explicit_scheme).find("is explicit") != std::string::npos);
+  const std::string bad_damping = R"({
+    "materials": { "m": { "model": "arap", "youngs": 1e6, "poisson": 0.3, "density": 1000,
+                          "damping": { "mass": -1 } } },
+    "bodies": [ { "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m" } ]
+  })";
+  CHECK(scene_error_of(bad_damping).find("materials.m.damping.mass") != std::string::npos);
+}
