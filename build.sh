@@ -25,7 +25,14 @@ asan_skip="scene roller|kill and resume: the 100-body pile|cantilever: newmark a
 asan_skip+="|one step of every shipped scene"
 jobs=$(nproc)
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$build_dir" -j "$jobs"
+# What each mode needs: the demo the program, the tests the program and the test suite (the
+# benchmarks' build takes a fifth of a full one), everything else everything.
+case "${1:-build}" in
+  demo) targets=(--target nexdyn) ;;
+  test) targets=(--target nexdyn nexdyn_tests) ;;
+  *) targets=() ;;
+esac
+cmake --build "$build_dir" -j "$jobs" "${targets[@]}"
 
 case "${1:-build}" in
   build) ;;
