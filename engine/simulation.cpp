@@ -319,6 +319,7 @@ StepOutcome Simulation::projective_dynamics_solve(const StepContext& ctx, int& i
   const PdResult result = pd_->solve(ctx.potential_scale, ctx.dt, state_.x_tilde, x_next_);
   iterations += result.iterations;
   if (result.status != StepStatus::ok) return {result.status, "Projective Dynamics: " + result.message};
+  pd_plane_vertices_ = result.plane_vertices;
   // The plane constraints' forces are smooth forces of the step here, not impulses.
   update_implicit(*ctx.scheme, ctx.dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
   return {};

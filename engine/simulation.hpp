@@ -190,6 +190,9 @@ class Simulation {
   void measure_step(StepStats& stats);
   // Energies and momentum without the contact columns.
   void measure_motion(StepStats& stats) const;
+  // Projective Dynamics has no barrier: contacts are the vertices its last solve held on plane
+  // obstacles, min_distance the smallest vertex-plane distance.
+  void measure_planes(StepStats& stats) const;
 
   const Scene& scene_;
   const Model& model_;
@@ -209,6 +212,7 @@ class Simulation {
   std::unique_ptr<NewtonSolver> newton_;  // built lazily: explicit schemes never need it
   std::unique_ptr<LinearizedStep> linearized_;  // "solver.method": "linearized", built lazily
   std::unique_ptr<ProjectiveDynamics> pd_;      // "solver.method": "projective_dynamics", lazily
+  int32_t pd_plane_vertices_ = 0;               // held on planes by PD's last accepted solve
   double joint_tolerance_ = 0.0;          // [m]
   bool kinematic_on_target_ = false;      // this attempt's kinematic vertices are held on target
   std::vector<double> x_next_, a_next_, force_, motion_;  // (3n) step workspaces

@@ -118,14 +118,27 @@ void add_contact_summary(StepStats& stats, const BarrierPotential::Summary& summ
 }
 }  // namespace
 
+void Simulation::measure_planes(StepStats& stats) const {
+  if (contact_ || !scene_.contact.enabled || model_.obstacle_planes.empty()) return;
+  stats.contacts = pd_plane_vertices_;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (model_.dirichlet[v] >= 0) continue;
+    const Eigen::Vector3d x = Eigen::Vector3d::Map(&state_.x[3 * v]);
+    for (const ObstaclePlane& plane : model_.obstacle_planes)
+      stats.min_distance = std::min(stats.min_distance, (x - plane.point).dot(plane.normal));
+  }
+}
+
 void Simulation::measure_step(StepStats& stats) {
   measure_motion(stats);
+  measure_planes(stats);
   // Leaves the barrier's candidates at a static search of x: the next step's first is free.
   if (contact_) add_contact_summary(stats, contact_->summarize(state_.x.data()), history_.kappa);
 }
 
 void Simulation::measure(StepStats& stats) const {
   measure_motion(stats);
+  measure_planes(stats);
   // A barrier of its own, so that measuring leaves the step's candidates as they were.
   if (contact_) {
     BarrierPotential barrier(model_, contact_->dhat());
