@@ -123,6 +123,7 @@ class Simulation {
   // The scheme of an attempt (see the top of this file) and its context.
   StepContext choose_scheme(double dt, double t_next, int level);
   StepOutcome explicit_update(const StepContext& ctx);
+  // ---- the implicit solve (simulation_solve.cpp)
   StepOutcome implicit_solve(const StepContext& ctx, int& iterations);
   // "solver.method": "linearized": one linear solve from x_n (engine/solver/linearized_step.hpp).
   StepOutcome linearized_solve(const StepContext& ctx, int& iterations);
@@ -139,6 +140,7 @@ class Simulation {
   NewtonResult solve_with_joints(const StepContext& ctx, int& iterations);
   // Friction bases and normal forces at x (lagged; engine/contact/friction_potential.hpp).
   void lag_friction(const StepContext& ctx, const std::vector<double>& x);
+  // ---- after the solve (simulation.cpp)
   // The update of a, a_bar, v after the solve (impulsive forces kept out of a and a_bar).
   void update_after_solve(const StepContext& ctx);
   // The update of a, a_bar, v after a solve with contact (and f_{n+1} kept as the next f_n).

@@ -19,6 +19,21 @@ inline void tet_values(const int32_t* tet, const double* v, double* vt) {
 }
 }  // namespace
 
+template <typename Value>
+void TetSlabOperator::gather_corners(Value&& value, double* out) const {
+  parallel_for(model_.num_vertices, [&](int64_t b, int64_t e) {
+    for (int64_t v = b; v < e; ++v)
+      for (int d = 0; d < 3; ++d) {
+        double sum = 0.0;
+        for (int64_t k = corner_ptr_[v]; k < corner_ptr_[v + 1]; ++k) {
+          const int64_t c = corners_[k];
+          sum += value(c / 4, 3 * (c % 4) + d);
+        }
+        out[3 * v + d] = sum;
+      }
+  }, kVertexGrain);
+}
+
 TetSlabOperator::TetSlabOperator(const Model& model) : model_(model) {
   const int32_t n = model.num_vertices;
   corner_ptr_.assign(n + 1, 0);
@@ -85,32 +100,11 @@ void TetSlabOperator::apply(const double* v, double* out) const {
         for (int r = 0; r < 12; ++r) o[r] += S[12 * col + r] * vt[col];
     }
   }, kTetGrain);
-  parallel_for(model_.num_vertices, [&](int64_t b, int64_t e) {
-    for (int64_t v_id = b; v_id < e; ++v_id)
-      for (int d = 0; d < 3; ++d) {
-        double sum = 0.0;
-        for (int64_t k = corner_ptr_[v_id]; k < corner_ptr_[v_id + 1]; ++k) {
-          const int64_t c = corners_[k];
-          sum += tet_out_[12 * (c / 4) + 3 * (c % 4) + d];
-        }
-        out[3 * v_id + d] = sum;
-      }
-  }, kVertexGrain);
+  gather_corners([&](int64_t t, int64_t local) { return tet_out_[12 * t + local]; }, out);
 }
 
 void TetSlabOperator::diagonal(double* out) const {
-  parallel_for(model_.num_vertices, [&](int64_t b, int64_t e) {
-    for (int64_t v_id = b; v_id < e; ++v_id)
-      for (int d = 0; d < 3; ++d) {
-        double sum = 0.0;
-        for (int64_t k = corner_ptr_[v_id]; k < corner_ptr_[v_id + 1]; ++k) {
-          const int64_t c = corners_[k];
-          const int64_t local = 3 * (c % 4) + d;
-          sum += slabs_[144 * (c / 4) + 13 * local];
-        }
-        out[3 * v_id + d] = sum;
-      }
-  }, kVertexGrain);
+  gather_corners([&](int64_t t, int64_t local) { return slabs_[144 * t + 13 * local]; }, out);
 }
 
 void TetSlabOperator::gather(const HessianPattern& pattern, double* values) const {

@@ -36,6 +36,10 @@ class TetSlabOperator {
   void gather(const HessianPattern& pattern, double* values) const;
 
  private:
+  // out[3v + d] = sum over v's tet corners (tet t, corner a) of value(t, 3a + d), in tet order.
+  template <typename Value>
+  void gather_corners(Value&& value, double* out) const;
+
   const Model& model_;
   std::vector<int64_t> corner_ptr_;     // (num_vertices + 1) CSR: vertex -> its tet corners
   std::vector<int64_t> corners_;        // tet * 4 + corner, in tet order per vertex

@@ -5,6 +5,7 @@
 // is measured on the cantilever in test_integrator.cpp.)
 #include "engine/integrator.hpp"
 #include "engine/simulation.hpp"
+#include "tests/engine/cantilever_support.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -57,18 +58,6 @@ std::string cantilever_json(int nx, int ny, const std::string& integrator) {
   })";
 }
 
-// Mean y of the free end's vertices (x = +1).
-double tip_y(const Model& model, const std::vector<double>& x) {
-  double sum = 0.0;
-  int count = 0;
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.rest_positions[3 * v] > 0.999) {
-      sum += x[3 * v + 1];
-      ++count;
-    }
-  return sum / count;
-}
-
 // The cantilever's first bending frequency [rad/s], measured: the static sag (one step of the
 // static integrator) is the level the tip oscillates about; Newmark, which neither damps nor (at
 // omega dt = 0.05) shifts the period by more than (omega dt)^2 / 12 = 2e-4, runs three periods.
@@ -76,16 +65,16 @@ double measured_frequency(int nx, int ny) {
   Scene statics = test::scene_from_json(cantilever_json(nx, ny, "static"), "beam_static");
   Simulation sag(statics);
   REQUIRE(sag.step().status == StepStatus::ok);
-  const double level = tip_y(statics.model, sag.state().x);
+  const double level = test::tip_y(statics.model, sag.state().x);
 
   Scene scene = test::scene_from_json(cantilever_json(nx, ny, "newmark"), "beam_dynamic");
   scene.time.energy_guard = false;
   Simulation sim(scene);
-  std::vector<double> t = {0.0}, y = {tip_y(scene.model, sim.state().x)};
+  std::vector<double> t = {0.0}, y = {test::tip_y(scene.model, sim.state().x)};
   for (int i = 0; i < 380; ++i) {
     REQUIRE(sim.step().status == StepStatus::ok);
     t.push_back(sim.state().time);
-    y.push_back(tip_y(scene.model, sim.state().x));
+    y.push_back(test::tip_y(scene.model, sim.state().x));
   }
   return 2.0 * M_PI / period_from(t, y, level);
 }

@@ -5,6 +5,7 @@
 // same on 1 and 2 threads.
 #include "engine/simulation.hpp"
 #include "engine/terms/damping_term.hpp"
+#include "tests/engine/cantilever_support.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -36,17 +37,6 @@ std::string beam_json(const std::string& damping, const std::string& integrator 
   })";
 }
 
-double tip_y(const Model& model, const std::vector<double>& x) {
-  double sum = 0.0;
-  int count = 0;
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.rest_positions[3 * v] > 0.999) {
-      sum += x[3 * v + 1];
-      ++count;
-    }
-  return sum / count;
-}
-
 struct Run {
   std::vector<double> t, y, total, dissipated, kinetic;
 };
@@ -58,7 +48,7 @@ Run run_beam(const std::string& json, int steps) {
   for (int i = 0; i < steps; ++i) {
     REQUIRE(sim.step().status == StepStatus::ok);
     run.t.push_back(sim.state().time);
-    run.y.push_back(tip_y(scene.model, sim.state().x));
+    run.y.push_back(test::tip_y(scene.model, sim.state().x));
     run.total.push_back(sim.last_stats().total_energy);
     run.dissipated.push_back(sim.last_stats().damping_dissipated);
     run.kinetic.push_back(sim.last_stats().kinetic_energy);
@@ -71,7 +61,7 @@ double static_level() {
   Scene statics = test::scene_from_json(beam_json("", "static"), "beam_static");
   Simulation sag(statics);
   REQUIRE(sag.step().status == StepStatus::ok);
-  return tip_y(statics.model, sag.state().x);
+  return test::tip_y(statics.model, sag.state().x);
 }
 
 // The extreme |y - level| of each half period (between consecutive crossings of the level),

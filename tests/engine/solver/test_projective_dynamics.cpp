@@ -8,6 +8,7 @@
 #include "engine/integrator.hpp"
 #include "engine/simulation.hpp"
 #include "engine/step_history.hpp"
+#include "tests/engine/cantilever_support.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -34,18 +35,6 @@ std::string cantilever_json(double dt, const std::string& integrator, const std:
     "bodies": [ { "box": { "size": [2.0, 0.2, 0.2], "cells": [)" + cells + R"(] }, "material": "rubber" } ],
     "boundary": [ { "box_min": [-1.001, -1, -1], "box_max": [-0.999, 1, 1], "fix": true } ]
   })";
-}
-
-// Mean y of the free end's vertices (x = +1).
-double tip_y(const Model& model, const std::vector<double>& x) {
-  double sum = 0.0;
-  int count = 0;
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.rest_positions[3 * v] > 0.999) {
-      sum += x[3 * v + 1];
-      ++count;
-    }
-  return sum / count;
 }
 
 // Steps a scene with PD and the scene's integrator, as Simulation does for an implicit scheme:
@@ -88,7 +77,7 @@ TEST_CASE("projective dynamics: the cantilever settles to Newton's static sag") 
   const int steps = 6;
   Simulation newton(scene);
   for (int i = 0; i < steps; ++i) REQUIRE(newton.step().status == StepStatus::ok);
-  const double newton_tip = tip_y(scene.model, newton.state().x);
+  const double newton_tip = test::tip_y(scene.model, newton.state().x);
 
   PdSettings settings;
   settings.tolerance = 1e-7;  // [m/s] at dt = 1: steps of 0.1 micrometre
@@ -100,7 +89,7 @@ TEST_CASE("projective dynamics: the cantilever settles to Newton's static sag") 
     REQUIRE_MESSAGE(r.converged(), r.message);
     iterations += r.iterations;
   }
-  const double pd_tip = tip_y(scene.model, pd.x);
+  const double pd_tip = test::tip_y(scene.model, pd.x);
   MESSAGE("tip deflection after ", steps, " steps of 1 s: Newton ", newton_tip, " m, PD ", pd_tip, " m (",
           iterations, " PD iterations, rho ", pd.pd.spectral_radius(scale_of(scene)), ")");
   CHECK(newton_tip < -0.1);  // a real, large-rotation sag
