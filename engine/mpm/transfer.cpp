@@ -74,17 +74,20 @@ void particles_to_grid(const Particles& particles, const ParticleBins& bins, Gri
     const Eigen::Map<const Eigen::Matrix3d> C(&particles.C[9 * p]);
     const Eigen::Vector3d mv = m * Eigen::Map<const Eigen::Vector3d>(&particles.v[3 * p]);
     const Eigen::Matrix3d mC = m * C;
-    // x_i - x_p for the stencil's first node; the others add multiples of h.
+    // x_i - x_p = d0 + h (a, b, c) for node base + (a, b, c), so the APIC momentum
+    // m (v + C (x_i - x_p)) is q0 + a hC_0 + b hC_1 + c hC_2: adds per node, no matrix products.
     const Eigen::Vector3d d0 = grid.node_position(s.base[0], s.base[1], s.base[2]) -
                                Eigen::Map<const Eigen::Vector3d>(xp);
+    const Eigen::Vector3d q0 = mv + mC * d0;
+    const Eigen::Matrix3d hC = grid.h * mC;
     for (int c = 0; c < 3; ++c)
       for (int b = 0; b < 3; ++b) {
         const int64_t row = grid.node_index(s.base[0], s.base[1] + b, s.base[2] + c);
         const double wbc = s.w[1][b] * s.w[2][c];
+        const Eigen::Vector3d qbc = q0 + double(b) * hC.col(1) + double(c) * hC.col(2);
         for (int a = 0; a < 3; ++a) {
           const double w = s.w[0][a] * wbc;
-          const Eigen::Vector3d d = d0 + grid.h * Eigen::Vector3d(a, b, c);
-          const Eigen::Vector3d q = w * (mv + mC * d);
+          const Eigen::Vector3d q = w * (qbc + double(a) * hC.col(0));
           const int64_t node = row + a;
           mass[node] += w * m;
           momentum[3 * node + 0] += q[0];
@@ -112,21 +115,38 @@ void grid_to_particles(const Grid& grid, const double* grid_velocity, const doub
       const BSplineStencil s = bspline_stencil(grid, xp);
       const Eigen::Vector3d d0 = grid.node_position(s.base[0], s.base[1], s.base[2]) -
                                  Eigen::Map<const Eigen::Vector3d>(xp);
+      // B = sum w v_i (x_i - x_p)^T = v d0^T + h [S_0 S_1 S_2] with S_k = sum w v_i o_k, o the
+      // node's offset (a, b, c) in the stencil: no outer product per node.
       Eigen::Vector3d v = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d B = Eigen::Matrix3d::Zero();   // sum w v_i (x_i - x_p)^T
+      Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
       Eigen::Vector3d dx = Eigen::Vector3d::Zero();  // sum w u_i
       Eigen::Matrix3d G = Eigen::Matrix3d::Zero();   // sum u_i (grad w)^T
-      for_each_stencil_node(grid, s, [&](int64_t node, int o, double w, const Eigen::Vector3d& grad) {
-        const Eigen::Vector3d vi = Eigen::Map<const Eigen::Vector3d>(&grid_velocity[3 * node]);
-        const Eigen::Vector3d d = d0 + grid.h * Eigen::Vector3d(o % 3, (o / 3) % 3, o / 9);
-        v += w * vi;
-        B += (w * vi) * d.transpose();
-        if (grid_displacement) {
-          const Eigen::Vector3d ui = Eigen::Map<const Eigen::Vector3d>(&grid_displacement[3 * node]);
-          dx += w * ui;
-          G += ui * grad.transpose();
+      for (int c = 0; c < 3; ++c)
+        for (int b = 0; b < 3; ++b) {
+          const int64_t row = grid.node_index(s.base[0], s.base[1] + b, s.base[2] + c);
+          const double wbc = s.w[1][b] * s.w[2][c];
+          const double dwb = s.dw[1][b] * s.w[2][c], dwc = s.w[1][b] * s.dw[2][c];
+          Eigen::Vector3d v_row = Eigen::Vector3d::Zero(), s_row = Eigen::Vector3d::Zero();
+          for (int a = 0; a < 3; ++a) {
+            const int64_t node = row + a;
+            const double w = s.w[0][a] * wbc;
+            const Eigen::Vector3d wv = w * Eigen::Map<const Eigen::Vector3d>(&grid_velocity[3 * node]);
+            v_row += wv;
+            s_row += double(a) * wv;
+            if (grid_displacement) {
+              const Eigen::Vector3d ui = Eigen::Map<const Eigen::Vector3d>(&grid_displacement[3 * node]);
+              dx += w * ui;
+              G.col(0) += (s.dw[0][a] * wbc) * ui;
+              G.col(1) += (s.w[0][a] * dwb) * ui;
+              G.col(2) += (s.w[0][a] * dwc) * ui;
+            }
+          }
+          v += v_row;
+          S.col(0) += s_row;
+          S.col(1) += double(b) * v_row;
+          S.col(2) += double(c) * v_row;
         }
-      });
+      const Eigen::Matrix3d B = v * d0.transpose() + grid.h * S;
       Eigen::Map<Eigen::Vector3d>(&particles.v[3 * p]) = v;
       Eigen::Map<Eigen::Matrix3d>(&particles.C[9 * p]) = d_inv * B;
       if (grid_displacement) {
