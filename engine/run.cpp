@@ -1,6 +1,7 @@
 // The run loop behind `nexdyn run` (see run.hpp).
 #include "engine/run.hpp"
 
+#include "engine/mpm/mpm_simulation.hpp"
 #include "engine/output/checkpoint_file.hpp"
 #include "engine/output/frame_writer.hpp"
 #include "engine/render/view_file.hpp"
@@ -237,12 +238,32 @@ uint32_t file_crc(const fs::path& path) {
   return crc32(bytes.data(), bytes.size());
 }
 
-uint32_t model_crc(const Model& m) {
+uint32_t model_crc(const Scene& scene) {
   auto add = [](uint32_t crc, const auto& v) { return crc32(v.data(), v.size() * sizeof(v[0]), crc); };
+  const Model& m = scene.model;
   uint32_t crc = add(0, m.rest_positions);
   crc = add(crc, m.tets);
   crc = add(crc, m.mass);
-  return add(crc, m.dirichlet);
+  crc = add(crc, m.dirichlet);
+  if (scene.mpm) {
+    crc = add(crc, scene.mpm->initial.x);
+    crc = add(crc, scene.mpm->initial.mass);
+  }
+  return crc;
+}
+
+// The frame files of the two kinds of simulation: tets and surfaces, or a particle cloud.
+std::string frame_vtu(const Scene& scene, const Simulation& simulation) {
+  return vtu_document(scene.model, simulation.state().x, simulation.state().v);
+}
+std::string frame_obj(const Scene& scene, const Simulation& simulation) {
+  return obj_document(scene.model, simulation.state().x);
+}
+std::string frame_vtu(const Scene& scene, const MpmSimulation& simulation) {
+  return vtu_particles_document(simulation.state().particles, scene.mpm->particle_body, scene.mpm->materials);
+}
+std::string frame_obj(const Scene&, const MpmSimulation&) {
+  throw std::logic_error("MPM scenes have no surface to write (the scene reader refuses output.obj)");
 }
 
 constexpr const char* kRunTag = "nexdyn run";
@@ -408,20 +429,19 @@ fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const st
 // Steps `simulation` from record.steps_done + 1 to record.total_steps, writing rows, frames and
 // checkpoints into `out` (and frame 0 first on a fresh run; a resumed one has it in its record).
 // `stats` and `timings` are open at the end of record.steps_done's rows.
-RunSummary step_loop(const Scene& scene, const fs::path& out, Simulation& simulation, RunRecord record,
+template <typename Sim>
+RunSummary step_loop(const Scene& scene, const fs::path& out, Sim& simulation, RunRecord record,
                      RowFile& stats, RowFile& timings, bool show_progress, bool fresh, const SignalHook& hook) {
   const auto start = std::chrono::steady_clock::now();
   const fs::path frames_dir = out / "frames";
   auto write_frame = [&](int64_t frame) {
-    const State& s = simulation.state();
     if (scene.output.vtu) {
       const std::string name = frame_file_name(frame, "vtu");
-      write_file_atomically(frames_dir / name, vtu_document(scene.model, s.x, s.v));
-      record.pvd_frames.emplace_back(s.time, "frames/" + name);
+      write_file_atomically(frames_dir / name, frame_vtu(scene, simulation));
+      record.pvd_frames.emplace_back(simulation.state().time, "frames/" + name);
       write_file_atomically(out / "scene.pvd", pvd_document(record.pvd_frames));
     }
-    if (scene.output.obj)
-      write_file_atomically(frames_dir / frame_file_name(frame, "obj"), obj_document(scene.model, s.x));
+    if (scene.output.obj) write_file_atomically(frames_dir / frame_file_name(frame, "obj"), frame_obj(scene, simulation));
   };
 
   RunSummary summary;
@@ -506,7 +526,7 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   RunRecord record;
   record.scene_file = fs::absolute(scene.file);
   record.scene_crc = file_crc(scene.file);
-  record.model_crc = model_crc(scene.model);
+  record.model_crc = model_crc(scene);
   record.integrator = options.integrator;
   record.rho_inf = options.rho_inf;
   record.energy_guard = options.energy_guard;
@@ -515,6 +535,10 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
 
   RowFile stats(out, "stats", stats_header(scene));
   RowFile timings(out, "timings", timings_header());
+  if (scene.mpm) {
+    MpmSimulation simulation(scene);
+    return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true, hook);
+  }
   Simulation simulation(scene);
   return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true, hook);
 }
@@ -534,6 +558,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
     RunRecord record;
     std::unique_ptr<Scene> scene;
     std::unique_ptr<Simulation> simulation;
+    std::unique_ptr<MpmSimulation> mpm_simulation;
     try {
       payload = read_checkpoint_file(path);
       CheckpointReader in(payload, path.string());
@@ -543,7 +568,7 @@ RunSummary resume_run(const fs::path& out, bool progress) {
         throw std::runtime_error(record.scene_file.string() + " changed since the run started; resuming it "
                                  "would not continue the same run");
       scene = std::make_unique<Scene>(load_scene(record.scene_file, {}, out / "meshes"));
-      if (model_crc(scene->model) != record.model_crc)
+      if (model_crc(*scene) != record.model_crc)
         throw std::runtime_error(record.scene_file.string() + ": a mesh changed since the run started; "
                                  "resuming would not continue the same run");
       try {
@@ -552,10 +577,18 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       } catch (const std::runtime_error& e) {
         in.fail(std::string("the recorded integrator: ") + e.what());
       }
-      simulation = std::make_unique<Simulation>(*scene);
-      simulation->restore(in);
+      int64_t restored_step = 0;
+      if (scene->mpm) {
+        mpm_simulation = std::make_unique<MpmSimulation>(*scene);
+        mpm_simulation->restore(in);
+        restored_step = mpm_simulation->state().step;
+      } else {
+        simulation = std::make_unique<Simulation>(*scene);
+        simulation->restore(in);
+        restored_step = simulation->state().step;
+      }
       in.expect_end();
-      if (simulation->state().step != record.steps_done) in.fail("the state is not that of the recorded step");
+      if (restored_step != record.steps_done) in.fail("the state is not that of the recorded step");
     } catch (const CheckpointError& e) {
       std::fprintf(stderr, "nexdyn: skipping checkpoint %s\n", e.what());
       continue;
@@ -569,6 +602,8 @@ RunSummary resume_run(const fs::path& out, bool progress) {
       continue;
     }
     // Frames past the checkpoint are written again; the ones before are listed in its record.
+    if (mpm_simulation)
+      return step_loop(*scene, out, *mpm_simulation, std::move(record), *stats, *timings, progress, false, hook);
     return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress, false, hook);
   }
   throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");

@@ -10,6 +10,7 @@
 //   nexdyn plot DIR [--out PNGDIR] [--size WxH]   (PNG charts of a run's stats.csv and timings.csv)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
 #include "engine/ccd_queries.hpp"
+#include "engine/mpm/mpm_simulation.hpp"
 #include "engine/plot/stats_plot.hpp"
 #include "engine/mesh/msh_writer.hpp"
 #include "engine/output/frame_writer.hpp"
@@ -36,7 +37,34 @@ namespace {
 
 using namespace nexdyn;
 
+void print_tet_summary(const Scene& scene);
+
+// An MPM scene's lines of print_summary.
+void print_mpm_summary(const Scene& scene) {
+  const MpmModel& mpm = *scene.mpm;
+  const Grid grid = make_grid(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);
+  std::printf("scene %s (%s)\n", scene.name.c_str(), scene.file.string().c_str());
+  std::printf("  MPM: bodies %d, particles %lld, total mass %.6g kg, grid %d x %d x %d nodes (h %.6g m)\n",
+              mpm.num_bodies, static_cast<long long>(mpm.initial.size()), total_mass(mpm.initial), grid.nodes[0],
+              grid.nodes[1], grid.nodes[2], mpm.grid_spacing);
+  std::printf("  materials %zu, boundary boxes %zu, planes %zu\n", mpm.materials.size(), mpm.boxes.size(),
+              mpm.planes.size());
+}
+
 void print_summary(const Scene& scene) {
+  if (scene.mpm) {
+    print_mpm_summary(scene);
+  } else {
+    print_tet_summary(scene);
+  }
+  const IntegratorParams& p = scene.time.integrator;
+  std::printf("  integrator %s (alpha %.6g, beta %.6g, gamma %.6g", p.name.c_str(), p.alpha, p.beta, p.gamma);
+  if (p.alpha_m != 0.0 || p.alpha_f != 0.0) std::printf(", alpha_m %.6g, alpha_f %.6g", p.alpha_m, p.alpha_f);
+  if (!std::isnan(p.rho_inf)) std::printf(", rho_inf %.6g", p.rho_inf);
+  std::printf("), dt %.6g s, steps %lld\n", scene.time.dt, static_cast<long long>(scene.time.steps));
+}
+
+void print_tet_summary(const Scene& scene) {
   const Model& m = scene.model;
   double total_mass = 0.0;
   for (double mi : m.mass) total_mass += mi;
@@ -51,11 +79,6 @@ void print_summary(const Scene& scene) {
   std::printf("  materials %zu, total mass %.6g kg, boundary conditions %zu, obstacle planes %zu, "
               "obstacle meshes %zu\n", m.materials.size(), total_mass, boundary_entries,
               m.obstacle_planes.size(), obstacle_meshes);
-  const IntegratorParams& p = scene.time.integrator;
-  std::printf("  integrator %s (alpha %.6g, beta %.6g, gamma %.6g", p.name.c_str(), p.alpha, p.beta, p.gamma);
-  if (p.alpha_m != 0.0 || p.alpha_f != 0.0) std::printf(", alpha_m %.6g, alpha_f %.6g", p.alpha_m, p.alpha_f);
-  if (!std::isnan(p.rho_inf)) std::printf(", rho_inf %.6g", p.rho_inf);
-  std::printf("), dt %.6g s, steps %lld\n", scene.time.dt, static_cast<long long>(scene.time.steps));
 }
 
 }  // namespace
@@ -200,7 +223,11 @@ int run_plot(const CliArgs& a) {
 
 int run_check(const CliArgs& a) {
   Scene scene = load_scene(a.check_path);
-  Simulation validate(scene);  // builds the assembly and checks the initial forces
+  if (scene.mpm) {
+    MpmSimulation validate(scene);  // the particles are on the grid (checked by the loader)
+  } else {
+    Simulation validate(scene);  // builds the assembly and checks the initial forces
+  }
   print_summary(scene);
   std::printf("ok\n");
   return 0;

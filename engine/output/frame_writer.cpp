@@ -1,6 +1,9 @@
 // VTU / PVD / OBJ writers (see frame_writer.hpp).
 #include "engine/output/frame_writer.hpp"
 
+#include "kernels/elasticity/elasticity.hpp"
+
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -83,6 +86,60 @@ std::string vtu_document(const Model& model, const std::vector<double>& x, const
   xml += "</Points>\n<Cells>\n";
   array("Int32", "connectivity", 1, o_conn);
   array("Int32", "offsets", 1, o_offsets);
+  array("UInt8", "types", 1, o_types);
+  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  xml += data.bytes();
+  xml += "\n</AppendedData>\n</VTKFile>\n";
+  return xml;
+}
+
+std::string vtu_particles_document(const Particles& particles, const std::vector<int32_t>& particle_body,
+                                   const std::vector<Material>& materials) {
+  const size_t n = static_cast<size_t>(particles.size());
+  std::vector<int64_t> connectivity(n), offsets(n);
+  std::vector<double> J(n), von_mises(n);
+  for (size_t p = 0; p < n; ++p) {
+    connectivity[p] = static_cast<int64_t>(p);
+    offsets[p] = static_cast<int64_t>(p + 1);
+    const Eigen::Matrix3d F = particles.deformation(static_cast<int64_t>(p));
+    const Material& m = materials[particles.material[p]];
+    J[p] = F.determinant();
+    const Eigen::Matrix3d sigma = pk1(m.model, F, m.lame) * F.transpose() / J[p];
+    const Eigen::Matrix3d deviator = sigma - sigma.trace() / 3.0 * Eigen::Matrix3d::Identity();
+    von_mises[p] = std::sqrt(1.5 * deviator.squaredNorm());
+  }
+  const std::vector<uint8_t> types(n, 1);  // VTK_VERTEX
+  AppendedData data;
+  const int64_t o_points = data.add(particles.x.data(), 3 * n);
+  const int64_t o_conn = data.add(connectivity.data(), n);
+  const int64_t o_offsets = data.add(offsets.data(), n);
+  const int64_t o_types = data.add(types.data(), n);
+  const int64_t o_velocity = data.add(particles.v.data(), 3 * n);
+  const int64_t o_J = data.add(J.data(), n);
+  const int64_t o_von_mises = data.add(von_mises.data(), n);
+  const int64_t o_body = data.add(particle_body.data(), n);
+  std::string xml;
+  char buf[512];
+  xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
+         "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n";
+  std::snprintf(buf, sizeof(buf), "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", n, n);
+  xml += buf;
+  auto array = [&](const char* type, const char* name, int components, int64_t offset) {
+    std::snprintf(buf, sizeof(buf), "<DataArray type=\"%s\" Name=\"%s\" NumberOfComponents=\"%d\" "
+                  "format=\"appended\" offset=\"%lld\"/>\n", type, name, components,
+                  static_cast<long long>(offset));
+    xml += buf;
+  };
+  xml += "<PointData Vectors=\"velocity\" Scalars=\"von_mises\">\n";
+  array("Float64", "velocity", 3, o_velocity);
+  array("Float64", "J", 1, o_J);
+  array("Float64", "von_mises", 1, o_von_mises);
+  array("Int32", "body", 1, o_body);
+  xml += "</PointData>\n<Points>\n";
+  array("Float64", "Points", 3, o_points);
+  xml += "</Points>\n<Cells>\n";
+  array("Int64", "connectivity", 1, o_conn);
+  array("Int64", "offsets", 1, o_offsets);
   array("UInt8", "types", 1, o_types);
   xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
   xml += data.bytes();

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "engine/model.hpp"
+#include "engine/mpm/particles.hpp"
 
 #include <filesystem>
 #include <string>
@@ -22,6 +23,10 @@ std::string frame_file_name(int64_t frame, const char* extension);
 
 // VTU with points, tets, and point data "velocity" and "body".
 std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v);
+// VTU point cloud of MPM particles: one vertex cell per particle, point data "velocity", "J"
+// (det F), "von_mises" (the von Mises stress of the Cauchy stress J^-1 P F^T, Pa) and "body".
+std::string vtu_particles_document(const Particles& particles, const std::vector<int32_t>& particle_body,
+                                   const std::vector<Material>& materials);
 // OBJ with every vertex (global numbering, 1-based in the file) and every surface triangle.
 std::string obj_document(const Model& model, const std::vector<double>& x);
 // ParaView collection of (time, relative file) pairs.

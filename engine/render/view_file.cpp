@@ -31,6 +31,8 @@ SceneView scene_view(const Scene& scene) {
   SceneView view;
   if (model.gravity.norm() > 0.0) view.up = -model.gravity.normalized();
   for (const ObstaclePlane& plane : model.obstacle_planes) view.planes.push_back({plane.point, plane.normal});
+  if (scene.mpm)
+    for (const MpmPlane& plane : scene.mpm->planes) view.planes.push_back({plane.point, plane.normal});
   for (size_t t = 0; t + 2 < model.surface_triangles.size(); t += 3)
     if (model.bodies[model.vertex_body[model.surface_triangles[t]]].obstacle)
       for (int c = 0; c < 3; ++c) view.obstacle_triangles.push_back(static_cast<uint32_t>(model.surface_triangles[t + c]));

@@ -11,6 +11,7 @@
 #include "engine/contact/start_check.hpp"
 #include "engine/scene/build_model.hpp"
 #include "engine/scene/json_reader.hpp"
+#include "engine/scene/mpm_scene.hpp"
 #include "engine/scene/settings_readers.hpp"
 
 #include <Eigen/Geometry>
@@ -49,7 +50,7 @@ std::string read_scene_name(const json& root, const Where& w, const fs::path& fi
 
 // "gravity", "time", "solver", "contact" (but its "friction_pairs") and "output", and the checks
 // that tie them together.
-void read_settings(const json& root, const Where& w, Scene& scene) {
+void read_settings(const json& root, const Where& w, Scene& scene, bool mpm) {
   if (root.contains("gravity")) scene.model.gravity = vec3(root["gravity"], w["gravity"]);
   if (root.contains("time")) read_time(root["time"], w["time"], scene.time);
   if (root.contains("solver")) read_solver(root["solver"], w["solver"], scene.solver);
@@ -65,7 +66,8 @@ void read_settings(const json& root, const Where& w, Scene& scene) {
   }
   // IPC's barrier lives inside the implicit solve: an explicit step (beta = 0) has no
   // minimisation to add it to, so it could not keep bodies apart.
-  if (scene.contact.enabled && scene.time.integrator.is_explicit())
+  // MPM's planes act on grid nodes, which an explicit step can hold as well as an implicit one.
+  if (!mpm && scene.contact.enabled && scene.time.integrator.is_explicit())
     w["time"]["integrator"].fail("contact needs an implicit integrator (beta > 0); \"" +
                                  scene.time.integrator.name + "\" is explicit (beta = 0)");
   const bool has_obstacles = root.contains("obstacles") && !(root["obstacles"].is_array() && root["obstacles"].empty());
@@ -133,17 +135,22 @@ Scene load_scene(const fs::path& file, const SceneLimits& limits, const fs::path
   const json root = parse_scene_file(file);
   const Where w(file, "");
   check_keys(root, w, {"name", "gravity", "time", "solver", "contact", "materials", "bodies", "obstacles",
-                       "boundary", "joints", "output"});
+                       "boundary", "joints", "output", "mpm"});
   Scene scene;
   scene.file = file;
   scene.name = read_scene_name(root, w, file);
-  read_settings(root, w, scene);
+  const bool mpm = is_mpm_scene(root);
+  read_settings(root, w, scene, mpm);
 
   if (!root.contains("materials")) w.fail("missing key \"materials\"");
   const MaterialIds material_ids = read_materials(root["materials"], w["materials"], limits, scene.model.materials);
   if (root.contains("contact") && root["contact"].contains("friction_pairs"))
     read_friction_pairs(root["contact"]["friction_pairs"], w["contact"]["friction_pairs"], material_ids, scene.contact);
 
+  if (mpm) {
+    build_mpm_model(root, w, file.parent_path(), limits, scene);
+    return scene;
+  }
   build_model(root, w, file.parent_path(), material_ids, limits, scene.contact.enabled, mesh_cache_dir, scene.model,
               scene.initial);
   check_solver_method(w, scene);

@@ -11,6 +11,7 @@
 
 #include "engine/integrator.hpp"
 #include "engine/model.hpp"
+#include "engine/mpm/mpm_model.hpp"
 #include "engine/scene/scene_error.hpp"
 #include "engine/state.hpp"
 
@@ -112,6 +113,10 @@ struct Scene {
   Model model;
   State initial;  // x = start positions, v = body velocities (0 for obstacle vertices),
                   // a = 0 (set by the simulation)
+  // A scene of particle bodies (issue 23): its grid, particles and boundary conditions. Such a
+  // scene has no tets: `model` holds only its materials and gravity, `initial` is empty, and
+  // MpmSimulation (engine/mpm/mpm_simulation.hpp) steps it.
+  std::optional<MpmModel> mpm;
 };
 
 // How large a scene may be. A few bytes of JSON can ask for a box of 10^9 cells or a million

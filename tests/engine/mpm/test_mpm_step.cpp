@@ -1,0 +1,244 @@
+// The MPM step under the integrator family (issue 23): free fall on the parabola, momentum
+// conservation, a hanging column against the analytic sag, the bouncing cube's energy under
+// Newmark and implicit Euler, FEM and MPM landing together, the plane conditions, thread count.
+#include "engine/mpm/mpm_simulation.hpp"
+#include "engine/simulation.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstring>
+#include <string>
+
+using namespace nexdyn;
+
+namespace {
+
+// A scene of one particle block; `extra` is spliced into the top-level object.
+std::string block_scene(const std::string& integrator, double dt, int steps, const std::string& gravity,
+                        const std::string& translate, const std::string& velocity, const std::string& extra = "",
+                        const std::string& material = "\"model\": \"neohookean\", \"youngs\": 1e5, \"poisson\": 0.3") {
+  return R"({"gravity": )" + gravity + R"(, "time": {"dt": )" + std::to_string(dt) + R"(, "steps": )" +
+         std::to_string(steps) + R"(, "integrator": ")" + integrator + R"("},
+    "mpm": {"grid_spacing": 0.025, "domain_min": [-0.3, -0.1, -0.3], "domain_max": [0.3, 0.5, 0.3]},
+    "materials": {"m": {)" + material + R"(, "density": 1000}},
+    "bodies": [{"particles": {"box": {"size": [0.1, 0.1, 0.1], "per_cell": 2}}, "material": "m",
+                "translate": )" + translate + R"(, "velocity": )" + velocity + "}]" + extra + "}";
+}
+
+std::vector<StepStats> run(MpmSimulation& simulation, int steps) {
+  std::vector<StepStats> rows;
+  for (int k = 0; k < steps; ++k) {
+    const StepOutcome outcome = simulation.step();
+    REQUIRE_MESSAGE(outcome.status == StepStatus::ok, outcome.message);
+    rows.push_back(simulation.last_stats());
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST_CASE("mpm free fall follows the parabola under newmark and central difference") {
+  for (const std::string integrator : {"newmark", "central_difference"}) {
+    CAPTURE(integrator);
+    // The explicit scheme within its stability limit, about h / sqrt(E / rho) = 2.5 ms.
+    const double dt = integrator == "newmark" ? 0.01 : 0.001;
+    const Scene scene = test::scene_from_json(
+        block_scene(integrator, dt, 20, "[0, -9.81, 0]", "[0, 0.3, 0]", "[0.5, 0.2, -0.3]"), "mpm_fall");
+    MpmSimulation simulation(scene);
+    run(simulation, 20);
+    const Particles& start = scene.mpm->initial;
+    const Particles& now = simulation.state().particles;
+    const double t = simulation.state().time;
+    const Eigen::Vector3d v0(0.5, 0.2, -0.3), g(0, -9.81, 0);
+    double error = 0.0, speed_error = 0.0;
+    for (int64_t p = 0; p < now.size(); ++p) {
+      error = std::max(error, (now.position(p) - (start.position(p) + v0 * t + 0.5 * g * t * t)).cwiseAbs().maxCoeff());
+      speed_error = std::max(speed_error, (now.velocity(p) - (v0 + g * t)).cwiseAbs().maxCoeff());
+    }
+    MESSAGE(integrator << ": largest deviation from the parabola " << error << " m");
+    CHECK(error < 1e-10);
+    CHECK(speed_error < 1e-10);
+  }
+}
+
+TEST_CASE("mpm conserves momentum without gravity or boundaries") {
+  // Two blocks meet head on, off centre, and bounce: the grid couples them, the transfers must
+  // neither make nor lose momentum.
+  const std::string json = R"({"gravity": [0, 0, 0], "time": {"dt": 0.005, "steps": 30, "integrator": "newmark"},
+    "mpm": {"grid_spacing": 0.025, "domain_min": [-0.4, -0.3, -0.3], "domain_max": [0.4, 0.3, 0.3]},
+    "materials": {"m": {"model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000},
+                  "n": {"model": "corotated", "youngs": 3e5, "poisson": 0.2, "density": 500}},
+    "bodies": [{"particles": {"box": {"size": [0.1, 0.1, 0.1], "per_cell": 2}}, "material": "m",
+                "translate": [-0.08, 0.02, 0], "velocity": [2, 0, 0.5]},
+               {"particles": {"box": {"size": [0.1, 0.1, 0.1], "per_cell": 2}}, "material": "n",
+                "translate": [0.08, -0.02, 0], "velocity": [-1, 0.3, 0]}]})";
+  const Scene scene = test::scene_from_json(json, "mpm_momentum");
+  MpmSimulation simulation(scene);
+  const Eigen::Vector3d p0 = total_momentum(scene.mpm->initial);
+  double scale = 0.0;
+  for (int64_t p = 0; p < scene.mpm->initial.size(); ++p)
+    scale += scene.mpm->initial.mass[p] * scene.mpm->initial.velocity(p).norm();
+  double worst = 0.0;
+  for (const StepStats& row : run(simulation, 30)) worst = std::max(worst, (row.momentum - p0).norm() / scale);
+  MESSAGE("largest momentum change relative to sum m |v|: " << worst);
+  CHECK(worst < 1e-10);
+  // The blocks did meet: some particle was deformed.
+  double largest_strain = 0.0;
+  for (int64_t p = 0; p < simulation.state().particles.size(); ++p)
+    largest_strain = std::max(largest_strain, (simulation.state().particles.deformation(p) -
+                                               Eigen::Matrix3d::Identity()).norm());
+  CHECK(largest_strain > 1e-3);
+}
+
+TEST_CASE("mpm hanging column settles within 5 percent of rho g L^2 over 2E") {
+  // A 1 m column, Poisson ratio 0 (the 1D bar), held by the nodes of a box over its top end.
+  const double rho = 1000.0, g = 9.81, L = 1.0, E = 2.5e5;
+  const std::string json = R"({"gravity": [0, -9.81, 0], "time": {"dt": 0.02, "steps": 60, "integrator": "implicit_euler"},
+    "mpm": {"grid_spacing": 0.05, "domain_min": [-0.2, -1.3, -0.2], "domain_max": [0.2, 0.3, 0.2]},
+    "materials": {"m": {"model": "neohookean", "youngs": 2.5e5, "poisson": 0, "density": 1000}},
+    "bodies": [{"particles": {"box": {"size": [0.1, 1.0, 0.1], "per_cell": 2}}, "material": "m", "translate": [0, -0.5, 0]}],
+    "boundary": [{"box_min": [-0.2, -0.02, -0.2], "box_max": [0.2, 0.3, 0.2], "fix": true}]})";
+  const Scene scene = test::scene_from_json(json, "mpm_column");
+  MpmSimulation simulation(scene);
+  run(simulation, 60);
+  // The free end: the mean displacement of the lowest layer of particles.
+  const Particles& start = scene.mpm->initial;
+  const Particles& now = simulation.state().particles;
+  double lowest = 1e9;
+  for (int64_t p = 0; p < start.size(); ++p) lowest = std::min(lowest, start.position(p).y());
+  double sum = 0.0;
+  int count = 0;
+  for (int64_t p = 0; p < start.size(); ++p)
+    if (start.position(p).y() < lowest + 1e-9) {
+      sum += start.position(p).y() - now.position(p).y();
+      ++count;
+    }
+  const double sag = sum / count, expected = rho * g * L * L / (2.0 * E);
+  MESSAGE("free-end sag " << sag << " m, rho g L^2 / 2E = " << expected << " m");
+  CHECK(std::abs(sag - expected) < 0.05 * expected);
+  CHECK(simulation.last_stats().kinetic_energy < 1e-6 * rho * g * L * 0.01);  // settled
+}
+
+TEST_CASE("mpm cube bounces: newmark keeps its energy until landing and never gains, implicit euler decays") {
+  const std::string plane = R"(, "contact": {}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}])";
+  {
+    const Scene scene = test::scene_from_json(
+        block_scene("newmark", 0.005, 70, "[0, -9.81, 0]", "[0, 0.12, 0]", "[0, 0, 0]", plane), "mpm_bounce");
+    MpmSimulation simulation(scene);
+    const std::vector<StepStats> rows = run(simulation, 70);
+    double peak_kinetic = 0.0;
+    for (const StepStats& row : rows) peak_kinetic = std::max(peak_kinetic, row.kinetic_energy);
+    StepStats start;
+    simulation.measure(start);
+    const double E0 = rows.front().total_energy - rows.front().balance.integrator_energy;
+    size_t landing = 0;
+    while (landing < rows.size() && rows[landing].contacts == 0) ++landing;
+    REQUIRE(landing < rows.size());
+    for (size_t k = 0; k < landing; ++k) CHECK(std::abs(rows[k].total_energy - E0) <= 0.01 * peak_kinetic);
+    double highest = rows[landing].total_energy;
+    for (size_t k = landing; k < rows.size(); ++k) {
+      CHECK(rows[k].total_energy <= highest + 0.01 * peak_kinetic);
+      highest = std::max(highest, rows[k].total_energy);
+    }
+    // It bounces: the momentum turns upward after landing.
+    double highest_momentum = 0.0;
+    for (size_t k = landing; k < rows.size(); ++k) highest_momentum = std::max(highest_momentum, rows[k].momentum.y());
+    CHECK(highest_momentum > 0.0);
+    MESSAGE("newmark: landed at step " << landing + 1 << ", energy lost by the end "
+                                       << (E0 - rows.back().total_energy) / peak_kinetic << " of the peak kinetic energy");
+  }
+  {
+    const Scene scene = test::scene_from_json(
+        block_scene("implicit_euler", 0.005, 70, "[0, -9.81, 0]", "[0, 0.12, 0]", "[0, 0, 0]", plane), "mpm_bounce_ie");
+    MpmSimulation simulation(scene);
+    const std::vector<StepStats> rows = run(simulation, 70);
+    for (size_t k = 1; k < rows.size(); ++k) CHECK(rows[k].total_energy <= rows[k - 1].total_energy + 1e-12);
+  }
+}
+
+TEST_CASE("mpm and fem cubes land at the same step") {
+  // The same 5 cm cube, dropped from the same height, as tets (IPC contact with the plane) and as
+  // particles (the plane as a grid condition). Landing: the first step whose vertical momentum
+  // rises. MPM feels the plane once a particle's stencil reaches a node on it, up to 1.5 h minus
+  // half a particle spacing before the material does: with h = 1.25 cm that is 1.6 cm, less than
+  // the 2 cm the cube falls in the step before it lands.
+  const std::string common = R"("gravity": [0, -9.81, 0], "time": {"dt": 0.01, "steps": 30, "integrator": "newmark"},
+    "contact": {}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}],
+    "materials": {"m": {"model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000}},)";
+  auto landing = [](const std::vector<double>& momentum_y) {
+    for (size_t k = 1; k < momentum_y.size(); ++k)
+      if (momentum_y[k] > momentum_y[k - 1]) return static_cast<int>(k + 1);
+    return -1;
+  };
+  const Scene fem = test::scene_from_json("{" + common + R"(
+    "bodies": [{"box": {"size": [0.05, 0.05, 0.05], "cells": [2, 2, 2]}, "material": "m", "translate": [0, 0.225, 0]}]})",
+                                          "fem_land");
+  Simulation fem_simulation(fem);
+  std::vector<double> fem_momentum;
+  for (int k = 0; k < 30; ++k) {
+    REQUIRE(fem_simulation.step().status == StepStatus::ok);
+    fem_momentum.push_back(fem_simulation.last_stats().momentum.y());
+  }
+  const Scene mpm = test::scene_from_json("{" + common + R"(
+    "mpm": {"grid_spacing": 0.0125, "domain_min": [-0.1, -0.05, -0.1], "domain_max": [0.1, 0.3, 0.1]},
+    "bodies": [{"particles": {"box": {"size": [0.05, 0.05, 0.05], "per_cell": 2}}, "material": "m", "translate": [0, 0.225, 0]}]})",
+                                          "mpm_land");
+  MpmSimulation mpm_simulation(mpm);
+  std::vector<double> mpm_momentum;
+  for (const StepStats& row : run(mpm_simulation, 30)) mpm_momentum.push_back(row.momentum.y());
+  const int fem_step = landing(fem_momentum), mpm_step = landing(mpm_momentum);
+  MESSAGE("landing step: FEM " << fem_step << ", MPM " << mpm_step);
+  REQUIRE(fem_step > 0);
+  REQUIRE(mpm_step > 0);
+  CHECK(std::abs(fem_step - mpm_step) <= 1);
+}
+
+TEST_CASE("mpm plane conditions: separating and slip let a block slide, sticky holds it") {
+  // A block set down on the plane moving sideways at 1 m/s, without gravity.
+  auto slide = [](const std::string& condition, const std::string& friction) {
+    const std::string extra = R"(, "contact": {)" + friction + R"(}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}, "condition": ")" +
+                              condition + R"("}])";
+    const Scene scene = test::scene_from_json(
+        block_scene("implicit_euler", 0.005, 10, "[0, -9.81, 0]", "[0, 0.05, 0]", "[1, 0, 0]", extra), "mpm_slide");
+    MpmSimulation simulation(scene);
+    const std::vector<StepStats> rows = run(simulation, 10);
+    const double mass = total_mass(scene.mpm->initial);
+    // Mean x velocity, and the plane's normal impulse per unit mass (m g t + the y momentum gained).
+    return std::pair<double, double>(rows.back().momentum.x() / mass, 9.81 * 0.05 + rows.back().momentum.y() / mass);
+  };
+  const double separating = slide("separating", "").first, slip = slide("slip", "").first;
+  const double sticky = slide("sticky", "").first;
+  const auto [rough, normal_impulse] = slide("separating", R"("friction": 0.5)");
+  MESSAGE("mean x velocity after 0.05 s: separating " << separating << ", slip " << slip << ", sticky " << sticky
+                                                      << ", separating with mu 0.5 " << rough);
+  CHECK(separating == doctest::Approx(1.0).epsilon(1e-6));
+  CHECK(slip == doctest::Approx(1.0).epsilon(1e-6));
+  CHECK(sticky < 0.9);
+  // Coulomb: some speed lost, at most mu times the normal impulse.
+  CHECK(rough < separating);
+  CHECK(1.0 - rough <= 0.5 * normal_impulse + 1e-9);
+}
+
+TEST_CASE("mpm steps are the same on 1 and 2 threads") {
+  const std::string extra = R"(, "contact": {"friction": 0.3}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0.2]}}])";
+  const Scene scene = test::scene_from_json(
+      block_scene("generalized_alpha", 0.005, 12, "[0, -9.81, 0]", "[0, 0.1, 0]", "[0.3, -1, 0]", extra), "mpm_threads");
+  auto final_state = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    MpmSimulation simulation(scene);
+    run(simulation, 12);
+    const Particles& p = simulation.state().particles;
+    std::vector<double> all = p.x;
+    all.insert(all.end(), p.v.begin(), p.v.end());
+    all.insert(all.end(), p.F.begin(), p.F.end());
+    all.insert(all.end(), p.C.begin(), p.C.end());
+    all.push_back(simulation.last_stats().total_energy);
+    return all;
+  };
+  const std::vector<double> one = final_state(1), two = final_state(2);
+  REQUIRE(one.size() == two.size());
+  CHECK(std::memcmp(one.data(), two.data(), one.size() * sizeof(double)) == 0);
+}
