@@ -22,7 +22,7 @@ tsan_tests="threads|thread count"
 # AddressSanitizer) are left to the plain suite so that CI stays within its hour; the code they
 # run is run under the sanitizers by the shorter scene, contact, friction and plot tests.
 asan_skip="scene roller|kill and resume: the 100-body pile|cantilever: newmark and the default|scene mat40x40_twist"
-asan_skip+="|one step of every shipped scene|scene impact_plate|scene bowl_drop"
+asan_skip+="|one step of every shipped scene|scene impact_plate|scene bowl_drop|mpm cube bounces|mpm and fem cubes land"
 jobs=$(nproc)
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 # What each mode needs: the demo the program, the tests the program and the test suite (the

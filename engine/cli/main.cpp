@@ -42,7 +42,7 @@ void print_tet_summary(const Scene& scene);
 // An MPM scene's lines of print_summary.
 void print_mpm_summary(const Scene& scene) {
   const MpmModel& mpm = *scene.mpm;
-  const Grid grid = make_grid(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);
+  const Grid grid = grid_geometry(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);
   std::printf("scene %s (%s)\n", scene.name.c_str(), scene.file.string().c_str());
   std::printf("  MPM: bodies %d, particles %lld, total mass %.6g kg, grid %d x %d x %d nodes (h %.6g m)\n",
               mpm.num_bodies, static_cast<long long>(mpm.initial.size()), total_mass(mpm.initial), grid.nodes[0],

@@ -13,8 +13,7 @@ Eigen::Vector3d Grid::node_position(int64_t node) const {
   return node_position(static_cast<int32_t>(i), static_cast<int32_t>(j), static_cast<int32_t>(k));
 }
 
-Grid make_grid(double grid_spacing, const Eigen::Vector3d& domain_min,
-               const Eigen::Vector3d& domain_max) {
+Grid grid_geometry(double grid_spacing, const Eigen::Vector3d& domain_min, const Eigen::Vector3d& domain_max) {
   Grid grid;
   grid.h = grid_spacing;
   grid.inv_h = 1.0 / grid_spacing;
@@ -25,6 +24,12 @@ Grid make_grid(double grid_spacing, const Eigen::Vector3d& domain_min,
     const double cells = std::ceil((domain_max[a] - domain_min[a]) / grid_spacing - 1e-9);
     grid.nodes[a] = static_cast<int32_t>(std::max(0.0, cells)) + 1;
   }
+  return grid;
+}
+
+Grid make_grid(double grid_spacing, const Eigen::Vector3d& domain_min,
+               const Eigen::Vector3d& domain_max) {
+  Grid grid = grid_geometry(grid_spacing, domain_min, domain_max);
   const size_t n = static_cast<size_t>(grid.num_nodes());
   grid.mass.assign(n, 0.0);
   grid.momentum.assign(3 * n, 0.0);

@@ -54,6 +54,9 @@ struct Grid {
 // up to h beyond domain_max), node arrays allocated and zero.
 Grid make_grid(double grid_spacing, const Eigen::Vector3d& domain_min,
                const Eigen::Vector3d& domain_max);
+// The same grid's geometry (spacing, origin, node counts) without its node arrays: for checks
+// that need only the stencils.
+Grid grid_geometry(double grid_spacing, const Eigen::Vector3d& domain_min, const Eigen::Vector3d& domain_max);
 
 // The quadratic B-spline stencil of one particle: node base[a] + o (o = 0, 1, 2) on axis a has the
 // 1D weight w[a][o] and derivative dw[a][o] (already divided by h, so in 1/m).

@@ -16,15 +16,17 @@
 //
 // The solve is Newton's method with a backtracking line search on E (a neo-Hookean particle
 // turned inside out makes E infinite, so the line search never accepts one), and the engine's
-// stopping rule: the largest node increment divided by h below solver.tolerance. Its linear
+// stopping rule on the particles: the largest particle move sum_i w_ip d_i of an increment, divided
+// by the step's dt, below solver.tolerance (nodes at the fringe of the stencils carry almost no
+// mass, and their own increments say little). Its linear
 // systems are solved by conjugate gradients preconditioned with the 3x3 diagonal blocks, on the
 // Hessian M + s K held in factored form: per particle V_p times the PSD-projected dP/dF
 // (81 numbers), and the stencil's g_ip = F_p^nT grad w_ip recomputed from the weights, so a
-// product K w costs about 600 flops per particle and a 27 x 27-node block is never formed (the
-// grid Hessian couples each node with 125 others; CHOLMOD's fill on it is measured in
-// docs/performance.md).
+// product K w costs about 600 flops per particle and a 27 x 27-node block is never formed. The
+// grid Hessian couples each node with the 125 nodes of a 5^3 box, so a sparse Cholesky of it
+// fills in like a 125-point 3D stencil; it is not tried here (issue 23's closing note).
 //
-// Boundary conditions act on nodes (docs/scenes.md, "MPM"): a node inside a `boundary` box follows
+// Boundary conditions act on nodes (docs/scenes.md, "MPM: particle bodies"): a node inside a `boundary` box follows
 // the box's motion; a node on or behind a plane is held (sticky), keeps its normal position
 // (slip), or may not move into the plane but may leave it (separating: an inequality, kept by
 // a projected Newton method with an active set; Coulomb friction then takes up to

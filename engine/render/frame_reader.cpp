@@ -95,6 +95,10 @@ FrameData parse_vtu_frame(std::string_view bytes, std::string_view name) {
   if (num_points < 0 || num_cells < 0 || num_points > (int64_t{1} << 31) / 3 || num_cells > (int64_t{1} << 31) / 4)
     fail(name, "<Piece> has impossible counts");
 
+  // MPM runs write particle clouds (vertex cells, with a "von_mises" array): nothing to shade yet.
+  if (xml.find("Name=\"von_mises\"") != std::string_view::npos)
+    fail(name, "is a particle point cloud of an MPM run; `nexdyn render` draws tet bodies only (open scene.pvd "
+               "in ParaView, with the Point Gaussian representation)");
   FrameData frame;
   read_block(xml, data, "Points", "Float64", 3 * num_points, 0, frame.points, name);
   read_block(xml, data, "connectivity", "Int32", 4 * num_cells, 0, frame.tets, name);

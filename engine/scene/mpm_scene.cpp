@@ -132,7 +132,7 @@ void read_particle_body(const json& j, const Where& w, const fs::path& scene_dir
     sample_mesh(p, wp, scene_dir, transform, density, velocity, material, limits, mpm.initial);
   }
   // Every particle's stencil must lie on the grid.
-  const Grid grid = make_grid(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);
+  const Grid grid = grid_geometry(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);
   for (int64_t q = before; q < mpm.initial.size(); ++q) {
     if (stencil_inside(grid, bspline_stencil(grid, &mpm.initial.x[3 * q]))) continue;
     const Eigen::Vector3d x = mpm.initial.position(q);
@@ -203,7 +203,7 @@ void refuse_unsupported(const json& root, const Where& w, const Scene& scene) {
         w["contact"][key].fail("not used by MPM scenes: planes act on the grid nodes, with contact.friction only");
   if (scene.solver.method != SolverMethod::newton)
     w["solver"]["method"].fail("MPM scenes are solved by Newton (\"newton\")");
-  if (scene.output.obj) w["output"]["obj"].fail("MPM frames are point clouds (.vtu); there is no surface to write as .obj");
+  if (scene.output.obj) w["output"]["formats"].fail("MPM frames are point clouds (.vtu): \"obj\" has no surface to write");
   for (const Material& m : scene.model.materials)
     if (m.damping.any()) w["materials"][m.name]["damping"].fail("damping is not supported with particle bodies");
 }
