@@ -369,7 +369,9 @@ double MpmStepper::gradient_and_stiffness(const Particles& particles, const std:
   });
 }
 
-// out = (M + s K) w, K in its factored per-particle form.
+// out = (M + s K) w, K in its factored per-particle form. With g_o = F_n^T grad w_o, a particle's
+// dF = sum_o w_o g_o^T = (sum_o w_o grad w_o^T) F_n and its forces dP g_o = (dP F_n^T) grad w_o,
+// so each node costs one outer product in and one 3x3 product out, and F_n is applied once.
 void MpmStepper::apply_hessian(const Particles& particles, double s, const std::vector<double>& w,
                                std::vector<double>& out) {
   const size_t na = active_.size();
@@ -377,18 +379,21 @@ void MpmStepper::apply_hessian(const Particles& particles, double s, const std::
   for (size_t k = 0; k < na; ++k)
     for (int d = 0; d < 3; ++d) out[3 * k + d] = m_[k] * w[3 * k + d];
   for_each_particle_coloured(bins_, [&](int32_t p) {
-    const StencilRows rows = stencil_rows(grid_, particles, p);
+    const BSplineStencil stencil = bspline_stencil(grid_, &particles.x[3 * p]);
     int32_t k[27];
-    Eigen::Matrix3d dF = Eigen::Matrix3d::Zero();
-    for (int o = 0; o < 27; ++o) {
-      k[o] = active_index_[rows.node[o]];
-      if (k[o] >= 0) dF += Eigen::Map<const Eigen::Vector3d>(&w[3 * int64_t{k[o]}]) * rows.g[o].transpose();
-    }
+    Eigen::Matrix3d G = Eigen::Matrix3d::Zero();
+    for_each_stencil_node(grid_, stencil, [&](int64_t node, int o, double, const Eigen::Vector3d& grad) {
+      k[o] = active_index_[node];
+      if (k[o] >= 0) G += Eigen::Map<const Eigen::Vector3d>(&w[3 * int64_t{k[o]}]) * grad.transpose();
+    });
+    const Eigen::Matrix3d F_n = particles.deformation(p);
+    const Eigen::Matrix3d dF = G * F_n;
     const Eigen::Map<const Matrix9d> A(&stiffness_[81 * int64_t{p}]);
     Eigen::Matrix<double, 9, 1> dP = A * Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dF.data());
-    const Eigen::Map<const Eigen::Matrix3d> dPm(dP.data());
-    for (int o = 0; o < 27; ++o)
-      if (k[o] >= 0) Eigen::Map<Eigen::Vector3d>(&out[3 * int64_t{k[o]}]) += s * (dPm * rows.g[o]);
+    const Eigen::Matrix3d Q = s * (Eigen::Map<const Eigen::Matrix3d>(dP.data()) * F_n.transpose());
+    for_each_stencil_node(grid_, stencil, [&](int64_t, int o, double, const Eigen::Vector3d& grad) {
+      if (k[o] >= 0) Eigen::Vector3d::Map(&out[3 * int64_t{k[o]}]) += Q * grad;
+    });
   });
 }
 
