@@ -12,9 +12,9 @@
 //   step (engine/incremental_potential.hpp). Fixed vertices do no work.
 // - friction_dissipated: grad D(x_{n+1}) . (x_{n+1} - x_n) over all vertices = sum over the
 //   friction contacts of mu N f1(|u|) |u| >= 0, the lagged friction force times the slip.
-// - damping_dissipated: the work of the Rayleigh damping force -D v over the step, by the
-//   trapezoidal rule over its two ends, as Newmark treats every force (>= 0 up to that rule's
-//   error). stats.csv reports its running sum since the start.
+// - damping_dissipated: dx^T D dx / h, the energy the Rayleigh damping force -D v took out over
+//   the step: >= 0, and its exact work under implicit Euler and under Newmark on a linear problem
+//   (Simulation::account_damping). stats.csv reports its running sum since the start.
 // - kappa_energy: (kappa_{n+1} - kappa_n) B(x_{n+1}): the barrier energy that a raised barrier
 //   stiffness added at the configuration it was raised in, not earned by any motion.
 // - integrator_energy: the rest, what the time integration itself created (> 0) or took out

@@ -205,7 +205,7 @@ StepOutcome Simulation::attempt(double dt, double t_next, int level, int& iterat
   predict_x_tilde(*ctx.scheme, ctx.dt, state_.x, state_.v, state_.a, state_.a_bar, state_.x_tilde);
   const StepOutcome outcome = ctx.scheme->is_explicit() ? explicit_update(ctx) : implicit_solve(ctx, iterations);
   if (outcome.status != StepStatus::ok) return outcome;
-  account_energy(state_.x, x_next_, kappa_before);
+  account_energy(state_.x, x_next_, kappa_before, ctx.dt);
   finish(ctx, held_kinetic_before);
   return outcome;
 }
@@ -241,7 +241,6 @@ StepOutcome Simulation::explicit_update(const StepContext& ctx) {
   if (damping_) {
     // The damping force at the velocity known before the step's end: v_n + h (1 - gamma) a_n.
     damping_->prepare_at_state();
-    remember_damping_force();
     const IntegratorParams& p = *ctx.scheme;
     motion_ = state_.v;
     for (size_t i = 0; i < motion_.size(); ++i) motion_[i] += ctx.dt * (1.0 - p.gamma) * state_.a[i];

@@ -164,7 +164,8 @@ class Simulation {
   // ---- energy accounting and measurement (simulation_energy.cpp)
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
   // energy of the motion x_old -> x_new to balance_.
-  void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before);
+  void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before,
+                      double dt);
   // Kinetic and gravity energy and momentum of state_, summed over the vertices in order.
   struct MotionSums {
     double kinetic = 0.0, gravity = 0.0;
@@ -185,8 +186,7 @@ class Simulation {
   // Rayleigh damping: the force at the start of the run's first step (the end of the step
   // before it, otherwise), once the step's D is known; and the work of the damping force over
   // the attempt's motion x_old -> x_new, booked in balance_ and the history.
-  void remember_damping_force();
-  void account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new);
+  void account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new, double dt);
   // The measure stage: measure(), with the contact summary taken by the barrier itself, which
   // leaves its candidates at a static search of x for the next step's first search.
   void measure_step(StepStats& stats);

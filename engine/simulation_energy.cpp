@@ -9,7 +9,7 @@
 namespace nexdyn {
 
 void Simulation::account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new,
-                                double kappa_before) {
+                                double kappa_before, double dt) {
   const std::vector<double> none;
   const std::vector<double>& contact_force = contact_ ? potential_.contact_force() : none;
   const std::vector<double>& friction_force = friction_ ? potential_.friction_force() : none;
@@ -25,26 +25,24 @@ void Simulation::account_energy(const std::vector<double>& x_old, const std::vec
   balance_.friction_dissipated += friction_dissipation(x_old, x_new, friction_force);
   const double kappa = potential_.barrier_stiffness();
   if (contact_ && kappa != kappa_before) balance_.kappa_energy += (kappa - kappa_before) * contact_->energy(x_new.data());
-  if (damping_) account_damping(x_old, x_new);
+  if (damping_) account_damping(x_old, x_new, dt);
 }
 
-void Simulation::remember_damping_force() {
-  if (!history_.damping_force.empty()) return;
-  history_.damping_force.resize(model_.num_dofs());
-  damping_->force(state_.v.data(), history_.damping_force.data());
-}
-
-void Simulation::account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new) {
+// The energy damping took out over the step: dx^T D dx / h with dx = x_{n+1} - x_n and this step's
+// D. Never negative (D is PSD). It is the damping force's exact work under implicit Euler
+// (dx = h v_{n+1}, force -D v_{n+1}) and under Newmark on a linear problem (dx = h (v_n + v_{n+1}) / 2,
+// work -dx . D (v_n + v_{n+1}) / 2); the trapezoid of -D v at the step's two ends, used before,
+// went negative when a contact impulse turned the end velocity around.
+void Simulation::account_damping(const std::vector<double>& x_old, const std::vector<double>& x_new, double dt) {
   if (scene_.time.integrator.is_static) return;
-  // state_.v is v_{n+1} by now; D is this step's.
-  std::vector<double> force(model_.num_dofs());
-  damping_->force(state_.v.data(), force.data());
-  const std::vector<double>& before = history_.damping_force.empty() ? force : history_.damping_force;
-  double work = 0.0;
-  for (size_t i = 0; i < force.size(); ++i) work += (x_new[i] - x_old[i]) * 0.5 * (before[i] + force[i]);
-  balance_.damping_dissipated -= work;
-  history_.damping_dissipated -= work;
-  history_.damping_force = std::move(force);
+  std::vector<double> dx(x_new.size()), force(model_.num_dofs());
+  for (size_t i = 0; i < dx.size(); ++i) dx[i] = x_new[i] - x_old[i];
+  damping_->force(dx.data(), force.data());  // -D dx
+  double dissipated = 0.0;
+  for (size_t i = 0; i < dx.size(); ++i) dissipated -= dx[i] * force[i];
+  dissipated /= dt;
+  balance_.damping_dissipated += dissipated;
+  history_.damping_dissipated += dissipated;
 }
 
 Simulation::MotionSums Simulation::motion_sums() const {

@@ -96,7 +96,6 @@ void Simulation::prepare_terms(const StepContext& ctx) {
   }
   hold_sleeping();
   potential_.begin_step(state_.x_tilde, ctx);
-  if (damping_) remember_damping_force();
   // The start-of-step contact force's part of the step: x_tilde += (alpha - r) h^2 M^-1 f_n.
   const std::vector<double>& memory = history_.contact_memory;
   if (contact_ && ctx.contact_memory_scale != 0.0 && !memory.empty()) {

@@ -68,10 +68,7 @@ struct StepHistory {
   double integrator_created = 0.0;
   double energy_scale = 0.0;
 
-  // Rayleigh damping (engine/terms/damping_term.hpp): its force -D v at the end of the last step
-  // (3n, N; empty before the first step), for the trapezoidal work of the next, and the energy
-  // it has taken out since the start [J].
-  std::vector<double> damping_force;
+  // The energy Rayleigh damping (engine/terms/damping_term.hpp) has taken out since the start [J].
   double damping_dissipated = 0.0;
 };
 

@@ -29,8 +29,9 @@
 namespace nexdyn {
 
 // 2: generalized-alpha history and the energy balance; 3: the energy guard's record;
-// 4: State and StepHistory (engine/output/step_checkpoint.hpp)
-inline constexpr uint32_t kCheckpointFormat = 6;
+// 4: State and StepHistory (engine/output/step_checkpoint.hpp); 5, 6: sleeping bodies, damping;
+// 7: the damping record without its end-of-step force, and MPM states
+inline constexpr uint32_t kCheckpointFormat = 7;
 
 // A checkpoint that cannot be used: unreadable, truncated, corrupt, or from another scene.
 struct CheckpointError : std::runtime_error {

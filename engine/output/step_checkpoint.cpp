@@ -84,7 +84,6 @@ void write_step_checkpoint(CheckpointWriter& out, const State& state, const Step
   out.put(history.energy_before);
   out.put(history.integrator_created);
   out.put(history.energy_scale);
-  out.put_vector(history.damping_force);
   out.put(history.damping_dissipated);
 }
 
@@ -133,11 +132,8 @@ void read_step_checkpoint(CheckpointReader& in, const StepCheckpointShape& shape
   if (!std::isfinite(h.energy_before)) in.fail("non-finite energy");
   if (!std::isfinite(h.integrator_created) || !finite_non_negative(h.energy_scale))
     in.fail("non-finite energy guard record");
-  h.damping_force = in.get_vector<double>();
-  if (!h.damping_force.empty() && static_cast<int64_t>(h.damping_force.size()) != n)
-    in.fail("damping force of the wrong size");
   h.damping_dissipated = in.get<double>();
-  if (!all_finite(h.damping_force) || !std::isfinite(h.damping_dissipated)) in.fail("non-finite damping record");
+  if (!std::isfinite(h.damping_dissipated)) in.fail("non-finite damping record");
 
   state_out = std::move(state);
   history_out = std::move(h);
