@@ -24,7 +24,8 @@
 // (81 numbers), and the stencil's g_ip = F_p^nT grad w_ip recomputed from the weights, so a
 // product K w costs about 600 flops per particle and a 27 x 27-node block is never formed. The
 // grid Hessian couples each node with the 125 nodes of a 5^3 box, so a sparse Cholesky of it
-// fills in like a 125-point 3D stencil; it is not tried here (issue 23's closing note).
+// fills in fast: one CHOLMOD factorisation of it costs about a whole PCG step already at 4,000
+// particles (bench/bench_mpm_cholmod.cpp, docs/performance.md "MPM").
 //
 // Boundary conditions act on nodes (docs/scenes.md, "MPM: particle bodies"): a node inside a `boundary` box follows
 // the box's motion; a node on or behind a plane is held (sticky), keeps its normal position
