@@ -97,13 +97,14 @@ std::string vtu_particles_document(const Particles& particles, const std::vector
                                    const std::vector<Material>& materials) {
   const size_t n = static_cast<size_t>(particles.size());
   std::vector<int64_t> connectivity(n), offsets(n);
-  std::vector<double> J(n), von_mises(n);
+  std::vector<double> J(n), von_mises(n), radius(n);
   for (size_t p = 0; p < n; ++p) {
     connectivity[p] = static_cast<int64_t>(p);
     offsets[p] = static_cast<int64_t>(p + 1);
     const Eigen::Matrix3d F = particles.deformation(static_cast<int64_t>(p));
     const Material& m = materials[particles.material[p]];
     J[p] = F.determinant();
+    radius[p] = 0.5 * std::cbrt(std::abs(J[p]) * particles.volume0[p]);
     const Eigen::Matrix3d sigma = pk1(m.model, F, m.lame) * F.transpose() / J[p];
     const Eigen::Matrix3d deviator = sigma - sigma.trace() / 3.0 * Eigen::Matrix3d::Identity();
     von_mises[p] = std::sqrt(1.5 * deviator.squaredNorm());
@@ -118,6 +119,7 @@ std::string vtu_particles_document(const Particles& particles, const std::vector
   const int64_t o_J = data.add(J.data(), n);
   const int64_t o_von_mises = data.add(von_mises.data(), n);
   const int64_t o_body = data.add(particle_body.data(), n);
+  const int64_t o_radius = data.add(radius.data(), n);
   std::string xml;
   char buf[512];
   xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
@@ -135,6 +137,7 @@ std::string vtu_particles_document(const Particles& particles, const std::vector
   array("Float64", "J", 1, o_J);
   array("Float64", "von_mises", 1, o_von_mises);
   array("Int32", "body", 1, o_body);
+  array("Float64", "radius", 1, o_radius);
   xml += "</PointData>\n<Points>\n";
   array("Float64", "Points", 3, o_points);
   xml += "</Points>\n<Cells>\n";

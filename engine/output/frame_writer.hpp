@@ -24,7 +24,8 @@ std::string frame_file_name(int64_t frame, const char* extension);
 // VTU with points, tets, and point data "velocity" and "body".
 std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v);
 // VTU point cloud of MPM particles: one vertex cell per particle, point data "velocity", "J"
-// (det F), "von_mises" (the von Mises stress of the Cauchy stress J^-1 P F^T, Pa) and "body".
+// (det F), "von_mises" (the von Mises stress of the Cauchy stress J^-1 P F^T, Pa), "body" and
+// "radius" (half the edge of a cube of the particle's volume, J V_p^0: what `nexdyn render` draws).
 std::string vtu_particles_document(const Particles& particles, const std::vector<int32_t>& particle_body,
                                    const std::vector<Material>& materials);
 // OBJ with every vertex (global numbering, 1-based in the file) and every surface triangle.

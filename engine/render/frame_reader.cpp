@@ -3,6 +3,7 @@
 
 #include "engine/mesh/mesh_file.hpp"
 
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -95,13 +96,16 @@ FrameData parse_vtu_frame(std::string_view bytes, std::string_view name) {
   if (num_points < 0 || num_cells < 0 || num_points > (int64_t{1} << 31) / 3 || num_cells > (int64_t{1} << 31) / 4)
     fail(name, "<Piece> has impossible counts");
 
-  // MPM runs write particle clouds (vertex cells, with a "von_mises" array): nothing to shade yet.
-  if (xml.find("Name=\"von_mises\"") != std::string_view::npos)
-    fail(name, "is a particle point cloud of an MPM run; `nexdyn render` draws tet bodies only (open scene.pvd "
-               "in ParaView, with the Point Gaussian representation)");
   FrameData frame;
   read_block(xml, data, "Points", "Float64", 3 * num_points, 0, frame.points, name);
-  read_block(xml, data, "connectivity", "Int32", 4 * num_cells, 0, frame.tets, name);
+  // MPM runs write particle clouds: vertex cells and a "radius" per point, no tets.
+  if (xml.find("Name=\"radius\"") != std::string_view::npos) {
+    read_block(xml, data, "radius", "Float64", num_points, 0, frame.radius, name);
+    for (double r : frame.radius)
+      if (!(r > 0.0) || !std::isfinite(r)) fail(name, "a particle radius is not a positive number");
+  } else {
+    read_block(xml, data, "connectivity", "Int32", 4 * num_cells, 0, frame.tets, name);
+  }
   read_block(xml, data, "velocity", "Float64", 3 * num_points, 0, frame.velocity, name);
   read_block(xml, data, "body", "Int32", num_points, 0, frame.body, name);
   for (size_t i = 0; i < frame.tets.size(); ++i)

@@ -27,6 +27,7 @@ struct FrameData {
   std::vector<int32_t> tets;     // (num_tets x 4) point ids
   std::vector<double> velocity;  // (num_points x 3) [m/s]
   std::vector<int32_t> body;     // (num_points) body id of each point
+  std::vector<double> radius;    // (num_points) particle radius [m]: a particle cloud (MPM), no tets
   int32_t num_points() const { return static_cast<int32_t>(points.size() / 3); }
 };
 

@@ -68,8 +68,51 @@ RenderSetting choose_render_setting(const RenderOptions& options, const SceneVie
 
 namespace {
 
+// A particle cloud as one small icosahedron per particle (12 corners, 20 outward triangles), so
+// the triangle tracer draws it; each corner carries its particle's body and speed.
+RenderInput particle_input(const FrameData& frame) {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0, scale = 1.0 / std::sqrt(1.0 + g * g);
+  const double corner[12][3] = {{-1, g, 0}, {1, g, 0},  {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                                {0, -1, -g}, {0, 1, -g}, {g, 0, -1},  {g, 0, 1},  {-g, 0, -1}, {-g, 0, 1}};
+  const uint32_t face[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  RenderInput in;
+  const int32_t n = frame.num_points();
+  in.positions.reserve(static_cast<size_t>(n) * 36);
+  in.triangles.reserve(static_cast<size_t>(n) * 60);
+  for (int32_t p = 0; p < n; ++p) {
+    const uint32_t base = static_cast<uint32_t>(in.positions.size() / 3);
+    const double r = frame.radius[p] * scale;
+    for (const auto& c : corner)
+      for (int d = 0; d < 3; ++d) in.positions.push_back(static_cast<float>(frame.points[3 * p + d] + r * c[d]));
+    for (const auto& f : face) {
+      for (uint32_t c : f) in.triangles.push_back(base + c);
+      in.triangle_body.push_back(frame.body[p]);
+    }
+  }
+  return in;
+}
+
 RenderInput render_input(const FrameData& frame, const SceneView& view, const RenderSetting& setting, ColorBy color,
                          const std::string& file) {
+  if (!frame.radius.empty()) {
+    RenderInput in = particle_input(frame);
+    if (color == ColorBy::value) {
+      in.vertex_value.reserve(in.positions.size() / 3);
+      float top = 0.0f;
+      for (int32_t p = 0; p < frame.num_points(); ++p) {
+        const float speed = static_cast<float>(Eigen::Vector3d(&frame.velocity[3 * p]).norm());
+        in.vertex_value.insert(in.vertex_value.end(), 12, speed);
+        top = std::max(top, speed);
+      }
+      in.value_max = top;
+    }
+    in.planes = setting.planes;
+    in.grid_spacing = setting.grid_spacing;
+    in.up = view.up;
+    return in;
+  }
   RenderInput in;
   in.positions.assign(frame.points.begin(), frame.points.end());
   const SurfaceMesh surface = extract_surface(frame.tets, frame.num_points());

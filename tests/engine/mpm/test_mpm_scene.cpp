@@ -95,7 +95,7 @@ TEST_CASE("mpm scene: what is refused, naming the key") {
       "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}])"), "mpm_explicit"));
 }
 
-TEST_CASE("mpm run writes point-cloud frames, scene.pvd and stats.csv") {
+TEST_CASE("mpm run writes point-cloud frames, scene.pvd and stats.csv, and render draws them") {
   const auto dir = test::temp_dir("mpm_run");
   const auto file = test::write_text(dir / "drop.json", scene(kGrid, kBody, R"(, "time": {"dt": 0.01, "steps": 3},
       "output": {"every": 3}, "contact": {}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}])"));
@@ -107,7 +107,7 @@ TEST_CASE("mpm run writes point-cloud frames, scene.pvd and stats.csv") {
   std::stringstream text;
   text << vtu.rdbuf();
   CHECK(text.str().find("NumberOfPoints=\"384\" NumberOfCells=\"384\"") != std::string::npos);
-  for (const char* name : {"Name=\"velocity\"", "Name=\"J\"", "Name=\"von_mises\"", "Name=\"body\""})
+  for (const char* name : {"Name=\"velocity\"", "Name=\"J\"", "Name=\"von_mises\"", "Name=\"body\"", "Name=\"radius\""})
     CHECK(text.str().find(name) != std::string::npos);
   std::ifstream stats(dir / "out" / "stats.csv");
   std::string header, line;
@@ -120,4 +120,10 @@ TEST_CASE("mpm run writes point-cloud frames, scene.pvd and stats.csv") {
   std::stringstream pvd_text;
   pvd_text << pvd.rdbuf();
   CHECK(pvd_text.str().find("frames/frame_000003.vtu") != std::string::npos);
+  // `nexdyn render` draws the particles (a small icosahedron each).
+  const test::CommandResult picture =
+      test::run_cli("render " + (dir / "out").string() + " --frame 3 --size 64x48 --color speed");
+  INFO(picture.output);
+  CHECK(picture.exit_code == 0);
+  CHECK(std::filesystem::file_size(dir / "out" / "render" / "frame_000003.png") > 100);
 }
