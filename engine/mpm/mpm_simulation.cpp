@@ -27,19 +27,11 @@ MpmSimulation::MpmSimulation(const Scene& scene) : scene_(scene), model_(*scene.
 
 StepOutcome MpmSimulation::step() {
   const auto start = std::chrono::steady_clock::now();
-  const MpmState before = state_;
   int iterations = 0, retries = 0;
   int64_t boundary_nodes = 0;
+  // On failure advance_or_split has put the state back as it was.
   const MpmStepResult result = advance_or_split(scene_.time.dt, 0, iterations, retries, boundary_nodes);
-  StepOutcome outcome;
-  if (!result.ok) {
-    state_ = before;
-    outcome.status = result.message.find("Newton did not converge") != std::string::npos ? StepStatus::max_iterations
-                     : result.message.find("line search") != std::string::npos      ? StepStatus::line_search_failed
-                                                                                     : StepStatus::non_finite;
-    outcome.message = result.message;
-    return outcome;
-  }
+  if (!result.ok) return {result.status, result.message};
   ++state_.step;
   stats_ = StepStats{};
   stats_.step = state_.step;
@@ -54,7 +46,7 @@ StepOutcome MpmSimulation::step() {
   stats_.balance.integrator_energy = stats_.total_energy - previous_total_;
   previous_total_ = stats_.total_energy;
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return outcome;
+  return {};
 }
 
 MpmStepResult MpmSimulation::advance_or_split(double dt, int level, int& iterations, int& retries,

@@ -44,6 +44,7 @@
 #include "engine/mpm/mpm_model.hpp"
 #include "engine/mpm/particles.hpp"
 #include "engine/mpm/transfer.hpp"
+#include "engine/solver/step_status.hpp"
 #include "engine/step_profile.hpp"
 
 #include <cstdint>
@@ -61,6 +62,7 @@ struct MpmStepSettings {
 
 struct MpmStepResult {
   bool ok = true;
+  StepStatus status = StepStatus::ok;  // why it failed, for stats and the retry
   std::string message;          // why the step failed
   bool retry_may_help = true;   // false when a smaller step cannot help (particles left the grid)
   int newton_iterations = 0;
@@ -85,8 +87,6 @@ class MpmStepper {
                         const MpmStepSettings& settings, StepProfile* profile = nullptr);
 
   const Grid& grid() const { return grid_; }
-  // Bytes of the stepper's buffers at their largest so far.
-  int64_t buffer_bytes() const;
 
  private:
   enum Hold : uint8_t { kFree = 0, kNormal = 1, kFull = 2 };
@@ -101,7 +101,7 @@ class MpmStepper {
   void finish_velocities(double dt);
   void transfer_to_particles(Particles& particles, MpmParticleHistory& history, bool with_abar);
 
-  // ---- pieces of the Newton solve ----
+  // ---- pieces of the Newton solve (mpm_step_system.cpp) ----
   double energy(const Particles& particles, const std::vector<double>& u, double s);
   double gradient_and_stiffness(const Particles& particles, const std::vector<double>& u, double s,
                                 std::vector<double>& g);
@@ -120,7 +120,7 @@ class MpmStepper {
   std::vector<int32_t> active_;        // active node ids, ascending
   std::vector<int32_t> active_index_;  // (num_nodes) position in active_, or -1
   // Per active node (compact): mass, and 3 per node for the rest.
-  std::vector<double> m_, v_, a_, a_bar_, u_tilde_, u_, grav_;
+  std::vector<double> m_, v_, a_, a_bar_, u_tilde_, u_;
   std::vector<uint8_t> hold_;          // Hold per active node
   std::vector<uint8_t> separating_;    // 1: the node's normal constraint is a separating one
   std::vector<double> normal_;         // 3 per active node (kNormal)
