@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <initializer_list>
 #include <fstream>
 #include <stdexcept>
 #include <system_error>
@@ -51,6 +52,44 @@ class AppendedData {
   void append(const void* p, size_t n) { bytes_.append(static_cast<const char*>(p), n); }
   std::string bytes_;
 };
+
+// One DataArray of a VTU file: where its bytes start in the appended block.
+struct VtuArray {
+  const char* type;
+  const char* name;
+  int components;
+  int64_t offset;
+};
+
+// The XML of an unstructured-grid VTU whose arrays are all in `data`; `point_attributes` names
+// the default vector (and scalar) of the point data.
+std::string vtu_file(size_t num_points, size_t num_cells, const char* point_attributes,
+                     std::initializer_list<VtuArray> point_data, VtuArray points,
+                     std::initializer_list<VtuArray> cells, const AppendedData& data) {
+  std::string xml;
+  char buf[512];
+  xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
+         "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n";
+  std::snprintf(buf, sizeof(buf), "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", num_points, num_cells);
+  xml += buf;
+  auto array = [&](const VtuArray& a) {
+    std::snprintf(buf, sizeof(buf), "<DataArray type=\"%s\" Name=\"%s\" NumberOfComponents=\"%d\" "
+                  "format=\"appended\" offset=\"%lld\"/>\n", a.type, a.name, a.components,
+                  static_cast<long long>(a.offset));
+    xml += buf;
+  };
+  xml += std::string("<PointData ") + point_attributes + ">\n";
+  for (const VtuArray& a : point_data) array(a);
+  xml += "</PointData>\n<Points>\n";
+  array(points);
+  xml += "</Points>\n<Cells>\n";
+  for (const VtuArray& a : cells) array(a);
+  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  xml += data.bytes();
+  xml += "\n</AppendedData>\n</VTKFile>\n";
+  return xml;
+}
+
 }  // namespace
 
 std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v) {
@@ -65,32 +104,12 @@ std::string vtu_document(const Model& model, const std::vector<double>& x, const
   const int64_t o_types = data.add(types.data(), nt);
   const int64_t o_velocity = data.add(v.data(), 3 * nv);
   const int64_t o_body = data.add(model.vertex_body.data(), nv);
-
-  std::string xml;
-  char buf[512];
-  xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
-         "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n";
-  std::snprintf(buf, sizeof(buf), "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", nv, nt);
-  xml += buf;
-  auto array = [&](const char* type, const char* name, int components, int64_t offset) {
-    std::snprintf(buf, sizeof(buf), "<DataArray type=\"%s\" Name=\"%s\" NumberOfComponents=\"%d\" "
-                  "format=\"appended\" offset=\"%lld\"/>\n", type, name, components,
-                  static_cast<long long>(offset));
-    xml += buf;
-  };
-  xml += "<PointData Vectors=\"velocity\">\n";
-  array("Float64", "velocity", 3, o_velocity);
-  array("Int32", "body", 1, o_body);
-  xml += "</PointData>\n<Points>\n";
-  array("Float64", "Points", 3, o_points);
-  xml += "</Points>\n<Cells>\n";
-  array("Int32", "connectivity", 1, o_conn);
-  array("Int32", "offsets", 1, o_offsets);
-  array("UInt8", "types", 1, o_types);
-  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
-  xml += data.bytes();
-  xml += "\n</AppendedData>\n</VTKFile>\n";
-  return xml;
+  return vtu_file(nv, nt, "Vectors=\"velocity\"",
+                  {{"Float64", "velocity", 3, o_velocity}, {"Int32", "body", 1, o_body}},
+                  {"Float64", "Points", 3, o_points},
+                  {{"Int32", "connectivity", 1, o_conn}, {"Int32", "offsets", 1, o_offsets},
+                   {"UInt8", "types", 1, o_types}},
+                  data);
 }
 
 std::string vtu_particles_document(const Particles& particles, const std::vector<int32_t>& particle_body,
@@ -120,34 +139,14 @@ std::string vtu_particles_document(const Particles& particles, const std::vector
   const int64_t o_von_mises = data.add(von_mises.data(), n);
   const int64_t o_body = data.add(particle_body.data(), n);
   const int64_t o_radius = data.add(radius.data(), n);
-  std::string xml;
-  char buf[512];
-  xml += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
-         "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n";
-  std::snprintf(buf, sizeof(buf), "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", n, n);
-  xml += buf;
-  auto array = [&](const char* type, const char* name, int components, int64_t offset) {
-    std::snprintf(buf, sizeof(buf), "<DataArray type=\"%s\" Name=\"%s\" NumberOfComponents=\"%d\" "
-                  "format=\"appended\" offset=\"%lld\"/>\n", type, name, components,
-                  static_cast<long long>(offset));
-    xml += buf;
-  };
-  xml += "<PointData Vectors=\"velocity\" Scalars=\"von_mises\">\n";
-  array("Float64", "velocity", 3, o_velocity);
-  array("Float64", "J", 1, o_J);
-  array("Float64", "von_mises", 1, o_von_mises);
-  array("Int32", "body", 1, o_body);
-  array("Float64", "radius", 1, o_radius);
-  xml += "</PointData>\n<Points>\n";
-  array("Float64", "Points", 3, o_points);
-  xml += "</Points>\n<Cells>\n";
-  array("Int64", "connectivity", 1, o_conn);
-  array("Int64", "offsets", 1, o_offsets);
-  array("UInt8", "types", 1, o_types);
-  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
-  xml += data.bytes();
-  xml += "\n</AppendedData>\n</VTKFile>\n";
-  return xml;
+  return vtu_file(n, n, "Vectors=\"velocity\" Scalars=\"von_mises\"",
+                  {{"Float64", "velocity", 3, o_velocity}, {"Float64", "J", 1, o_J},
+                   {"Float64", "von_mises", 1, o_von_mises}, {"Int32", "body", 1, o_body},
+                   {"Float64", "radius", 1, o_radius}},
+                  {"Float64", "Points", 3, o_points},
+                  {{"Int64", "connectivity", 1, o_conn}, {"Int64", "offsets", 1, o_offsets},
+                   {"UInt8", "types", 1, o_types}},
+                  data);
 }
 
 std::string obj_document(const Model& model, const std::vector<double>& x) {

@@ -279,23 +279,14 @@ void append_bodies(const json& bodies, const Where& w, const fs::path& scene_dir
 
 void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scene_bodies) {
   check_keys(j, w, {"body", "box_min", "box_max", "fix", "velocity", "angular_velocity", "axis", "center"});
-  if (!j.contains("box_min") || !j.contains("box_max")) w.fail("needs \"box_min\" and \"box_max\"");
-  const Eigen::Vector3d lo = vec3(j["box_min"], w["box_min"]);
-  const Eigen::Vector3d hi = vec3(j["box_max"], w["box_max"]);
-  if (!(lo.array() <= hi.array()).all()) w["box_max"].fail("box_max must be >= box_min in x, y and z", j["box_max"]);
+  Eigen::Vector3d lo, hi;
+  const DirichletMotion motion = read_box_motion(j, w, lo, hi);
   std::optional<int64_t> only_entry;
   if (j.contains("body")) {
     only_entry = integer(j["body"], w["body"], 0);
     if (*only_entry >= num_scene_bodies)
       w["body"].fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", j["body"]);
   }
-  const bool fix = j.contains("fix");
-  if (fix && !boolean(j["fix"], w["fix"])) w["fix"].fail("\"fix\" can only be true; leave it out for a moving boundary");
-  if (fix && (j.contains("velocity") || j.contains("angular_velocity")))
-    w.fail("\"fix\" cannot be combined with \"velocity\" or \"angular_velocity\"");
-  if (!fix && !j.contains("velocity") && !j.contains("angular_velocity"))
-    w.fail("give \"fix\": true, a \"velocity\" or an \"angular_velocity\"");
-  const DirichletMotion motion = read_motion(j, w, 0.5 * (lo + hi));
 
   const int32_t id = static_cast<int32_t>(model.dirichlet_motions.size());
   int64_t selected = 0;
@@ -437,6 +428,20 @@ Transform read_transform(const json& j, const Where& w) {
   t.linear = rotate * scale;
   if (j.contains("translate")) t.translate = vec3(j["translate"], w["translate"]);
   return t;
+}
+
+DirichletMotion read_box_motion(const json& j, const Where& w, Eigen::Vector3d& lo, Eigen::Vector3d& hi) {
+  if (!j.contains("box_min") || !j.contains("box_max")) w.fail("needs \"box_min\" and \"box_max\"");
+  lo = vec3(j["box_min"], w["box_min"]);
+  hi = vec3(j["box_max"], w["box_max"]);
+  if (!(lo.array() <= hi.array()).all()) w["box_max"].fail("box_max must be >= box_min in x, y and z", j["box_max"]);
+  const bool fix = j.contains("fix");
+  if (fix && !boolean(j["fix"], w["fix"])) w["fix"].fail("\"fix\" can only be true; leave it out for a moving boundary");
+  if (fix && (j.contains("velocity") || j.contains("angular_velocity")))
+    w.fail("\"fix\" cannot be combined with \"velocity\" or \"angular_velocity\"");
+  if (!fix && !j.contains("velocity") && !j.contains("angular_velocity"))
+    w.fail("give \"fix\": true, a \"velocity\" or an \"angular_velocity\"");
+  return read_motion(j, w, 0.5 * (lo + hi));
 }
 
 DirichletMotion read_motion(const json& j, const Where& w, const Eigen::Vector3d& center) {

@@ -50,6 +50,13 @@ Transform read_transform(const json& j, const Where& w);
 // with "axis", and "center" (default `center`).
 DirichletMotion read_motion(const json& j, const Where& w, const Eigen::Vector3d& center);
 
+// A "boundary" entry's box ("box_min", "box_max", into lo and hi) and its motion: "fix": true,
+// or the keys of read_motion about the box's centre. Tet and MPM scenes share it.
+DirichletMotion read_box_motion(const json& j, const Where& w, Eigen::Vector3d& lo, Eigen::Vector3d& hi);
+
+// The "plane" object of an "obstacles" entry (`plane`, at `wp`): its point and unit normal.
+void read_plane_geometry(const json& plane, const Where& wp, Eigen::Vector3d& point, Eigen::Vector3d& normal);
+
 // Fails at `w` when adding `vertices` and `tets` to the model would pass the scene's limits;
 // `what` says what is being added ("1000000 copies of a 4-vertex, 1-tet body").
 void check_size(const Model& model, int64_t vertices, int64_t tets, const SceneLimits& limits,

@@ -160,19 +160,8 @@ std::string append_obstacle(const ObstacleMesh& mesh, const Transform& transform
 // An entry with a "plane": appended to Model::obstacle_planes.
 void read_obstacle_plane(const json& j, const Where& w, int32_t scene_entry, int32_t material, Model& model) {
   check_keys(j, w, {"plane", "material"});
-  const json& plane = j["plane"];
-  const Where wp = w["plane"];
-  check_keys(plane, wp, {"point", "normal"});
-  if (!plane.contains("point") || !plane.contains("normal")) wp.fail("needs \"point\" and \"normal\"");
   ObstaclePlane p;
-  p.point = vec3(plane["point"], wp["point"]);
-  // Divided by its largest component first, so that [1e308, 1e308, 0] does not overflow.
-  const Eigen::Vector3d given = vec3(plane["normal"], wp["normal"]);
-  const double largest = given.cwiseAbs().maxCoeff();
-  const Eigen::Vector3d normal = largest > 0.0 ? Eigen::Vector3d(given / largest) : given;
-  const double length = normal.norm();
-  if (!(length > 0.0) || !std::isfinite(length)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
-  p.normal = normal / length;
+  read_plane_geometry(j["plane"], w["plane"], p.point, p.normal);
   p.scene_entry = scene_entry;
   p.material = material;
   model.obstacle_planes.push_back(p);
@@ -214,6 +203,19 @@ void read_obstacle(const json& j, const Where& w, int32_t scene_entry, const fs:
 }
 
 }  // namespace
+
+void read_plane_geometry(const json& plane, const Where& wp, Eigen::Vector3d& point, Eigen::Vector3d& normal) {
+  check_keys(plane, wp, {"point", "normal"});
+  if (!plane.contains("point") || !plane.contains("normal")) wp.fail("needs \"point\" and \"normal\"");
+  point = vec3(plane["point"], wp["point"]);
+  // Divided by its largest component first, so that [1e308, 1e308, 0] does not overflow.
+  const Eigen::Vector3d given = vec3(plane["normal"], wp["normal"]);
+  const double largest = given.cwiseAbs().maxCoeff();
+  const Eigen::Vector3d scaled = largest > 0.0 ? Eigen::Vector3d(given / largest) : given;
+  const double length = scaled.norm();
+  if (!(length > 0.0) || !std::isfinite(length)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
+  normal = scaled / length;
+}
 
 void append_obstacles(const json& obstacles, const Where& w, const fs::path& scene_dir,
                       const MaterialIds& material_ids, const SceneLimits& limits, Model& model, State& initial) {

@@ -147,17 +147,8 @@ void read_plane(const json& j, const Where& w, MpmModel& mpm) {
     w["mesh"].fail("MPM scenes take plane obstacles only: mesh contact is not supported with particle bodies");
   check_keys(j, w, {"plane", "material", "condition"});
   if (!j.contains("plane")) w.fail("missing key \"plane\"");
-  const json& plane = j["plane"];
-  const Where wp = w["plane"];
-  check_keys(plane, wp, {"point", "normal"});
-  if (!plane.contains("point") || !plane.contains("normal")) wp.fail("needs \"point\" and \"normal\"");
   MpmPlane p;
-  p.point = vec3(plane["point"], wp["point"]);
-  const Eigen::Vector3d given = vec3(plane["normal"], wp["normal"]);
-  const double largest = given.cwiseAbs().maxCoeff();
-  const Eigen::Vector3d normal = largest > 0.0 ? Eigen::Vector3d(given / largest) : given;
-  if (!(normal.norm() > 0.0)) wp["normal"].fail("the normal must not be zero", plane["normal"]);
-  p.normal = normal.normalized();
+  read_plane_geometry(j["plane"], w["plane"], p.point, p.normal);
   if (j.contains("material")) w["material"].fail("MPM planes take contact.friction; per-material friction is not supported");
   if (j.contains("condition")) {
     const std::string c = string(j["condition"], w["condition"]);
@@ -171,19 +162,8 @@ void read_plane(const json& j, const Where& w, MpmModel& mpm) {
 
 void read_box(const json& j, const Where& w, MpmModel& mpm) {
   check_keys(j, w, {"box_min", "box_max", "fix", "velocity", "angular_velocity", "axis", "center"});
-  if (!j.contains("box_min") || !j.contains("box_max")) w.fail("needs \"box_min\" and \"box_max\"");
   MpmBox box;
-  box.box_min = vec3(j["box_min"], w["box_min"]);
-  box.box_max = vec3(j["box_max"], w["box_max"]);
-  if (!(box.box_min.array() <= box.box_max.array()).all())
-    w["box_max"].fail("box_max must be >= box_min in x, y and z", j["box_max"]);
-  const bool fix = j.contains("fix");
-  if (fix && !boolean(j["fix"], w["fix"])) w["fix"].fail("\"fix\" can only be true; leave it out for a moving boundary");
-  if (fix && (j.contains("velocity") || j.contains("angular_velocity")))
-    w.fail("\"fix\" cannot be combined with \"velocity\" or \"angular_velocity\"");
-  if (!fix && !j.contains("velocity") && !j.contains("angular_velocity"))
-    w.fail("give \"fix\": true, a \"velocity\" or an \"angular_velocity\"");
-  box.motion = read_motion(j, w, 0.5 * (box.box_min + box.box_max));
+  box.motion = read_box_motion(j, w, box.box_min, box.box_max);
   bool selects = false;
   for (int64_t q = 0; q < mpm.initial.size() && !selects; ++q) {
     const Eigen::Vector3d x = mpm.initial.position(q);
