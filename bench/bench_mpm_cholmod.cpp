@@ -11,7 +11,7 @@
 #include "engine/mpm/grid_elasticity.hpp"
 #include "engine/mpm/mpm_step.hpp"
 #include "engine/solver/cholmod_solver.hpp"
-#include "kernels/elasticity/material.hpp"
+#include "bench/mpm_bench_scene.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -23,27 +23,9 @@
 namespace nexdyn {
 namespace {
 
-constexpr double kSpacing = 0.02, kDt = 0.005;
+constexpr double kDt = 0.005;
 
-MpmModel cube_model(int cells) {
-  MpmModel m;
-  m.grid_spacing = kSpacing;
-  m.domain_max = Eigen::Vector3d::Constant((cells + 6) * kSpacing);
-  m.gravity = Eigen::Vector3d(0, -9.81, 0);
-  Material material;
-  material.name = "rubber";
-  material.model = MaterialModel::neohookean;
-  material.youngs = 1e5;
-  material.poisson = 0.3;
-  material.density = 1000.0;
-  material.lame = lame_from_young_poisson(1e5, 0.3);
-  m.materials.push_back(material);
-  sample_box_particles(m.initial, Eigen::Vector3d::Constant(3.0 * kSpacing), Eigen::Vector3d::Constant(cells * kSpacing),
-                       kSpacing, 2, 1000.0, Eigen::Vector3d::Zero(), 0);
-  for (int64_t p = 0; p < m.initial.size(); ++p) m.initial.F[9 * p] = 0.95;
-  m.particle_body.assign(static_cast<size_t>(m.initial.size()), 0);
-  return m;
-}
+MpmModel cube_model(int cells) { return bench::squeezed_cube(cells); }
 
 struct Assembled {
   Eigen::SparseMatrix<double, Eigen::ColMajor, int64_t> upper;  // over the active DOFs

@@ -11,7 +11,7 @@
 // (step time / Newton iterations / particles).
 #include "engine/mpm/mpm_step.hpp"
 
-#include "kernels/elasticity/material.hpp"
+#include "bench/mpm_bench_scene.hpp"
 
 #include <benchmark/benchmark.h>
 #include <tbb/task_arena.h>
@@ -22,8 +22,6 @@
 
 namespace nexdyn {
 namespace {
-
-constexpr double kSpacing = 0.02;
 
 struct StepScene {
   MpmModel model;
@@ -36,24 +34,8 @@ StepScene& scene(int64_t target_particles) {
   if (s) return *s;
   s = std::make_unique<StepScene>();
   const int cells = static_cast<int>(std::lround(std::cbrt(static_cast<double>(target_particles) / 8.0)));
-  const double size = cells * kSpacing;
-  MpmModel& m = s->model;
-  m.grid_spacing = kSpacing;
-  m.domain_min = Eigen::Vector3d::Zero();
-  m.domain_max = Eigen::Vector3d::Constant(size + 6.0 * kSpacing);
-  m.gravity = Eigen::Vector3d(0, -9.81, 0);
-  Material material;
-  material.name = "rubber";
-  material.model = MaterialModel::neohookean;
-  material.youngs = 1e5;
-  material.poisson = 0.3;
-  material.density = 1000.0;
-  material.lame = lame_from_young_poisson(1e5, 0.3);
-  m.materials.push_back(material);
-  sample_box_particles(m.initial, Eigen::Vector3d::Constant(3.0 * kSpacing), Eigen::Vector3d::Constant(size), kSpacing,
-                       2, 1000.0, Eigen::Vector3d::Zero(), 0);
-  for (int64_t p = 0; p < m.initial.size(); ++p) m.initial.F[9 * p] = 0.95;
-  m.particle_body.assign(static_cast<size_t>(m.initial.size()), 0);
+  s->model = bench::squeezed_cube(cells);
+  const MpmModel& m = s->model;
   s->stepper = std::make_unique<MpmStepper>(m);
   return *s;
 }
