@@ -111,7 +111,7 @@ class MpmStepper {
                               double tolerance, std::vector<double>& x);
   void project(std::vector<double>& w) const;
   void invert_projected_blocks();
-  double particle_increment(const Particles& particles, const std::vector<double>& w) const;
+  double particle_increment(const Particles& particles, const std::vector<double>& w);
   void scatter_to_dense(const std::vector<double>& compact, std::vector<double>& dense) const;
 
   const MpmModel& model_;
@@ -134,6 +134,7 @@ class MpmStepper {
   std::vector<double> diag_raw_;       // the blocks m I + s D before projection
   std::vector<double> dense_u_, dense_v_, dense_work_;
   std::vector<double> particle_energy_;
+  std::vector<double> chunk_max_;       // per chunk of particles: the largest move (particle_increment)
   // Conjugate-gradient scratch.
   std::vector<double> r_, z_, p_, q_, d_, g_, trial_;
 };

@@ -61,9 +61,10 @@ StencilRows stencil_rows(const Grid& grid, const Particles& particles, int64_t p
 // The largest move of a particle under the node displacements w: max_p |sum_i w_ip w_i|.
 // Nodes at the fringe of the particles' stencils carry almost no mass, and their own increments
 // say nothing about the motion; the particles' do.
-double MpmStepper::particle_increment(const Particles& particles, const std::vector<double>& w) const {
+double MpmStepper::particle_increment(const Particles& particles, const std::vector<double>& w) {
   const int64_t n = particles.size();
-  std::vector<double> largest(static_cast<size_t>((n + 1023) / 1024), 0.0);
+  std::vector<double>& largest = chunk_max_;
+  largest.assign(static_cast<size_t>((n + 1023) / 1024), 0.0);
   for_each_chunk(n, 1024, [&](int64_t c, int64_t begin, int64_t end) {
     double m = 0.0;
     for (int64_t p = begin; p < end; ++p) {
