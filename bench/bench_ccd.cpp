@@ -14,12 +14,14 @@
 
 #include <string>
 
+#include "tests/test_data.hpp"
+
 namespace nexdyn {
 namespace {
 
 const CcdQuerySet& query_set(const std::string& name) {
-  static const CcdQuerySet vf = read_ccd_queries(std::string(NEXDYN_SHARED_DATA_DIR) + "/ccd/vertex-face.txt");
-  static const CcdQuerySet ee = read_ccd_queries(std::string(NEXDYN_SHARED_DATA_DIR) + "/ccd/edge-edge.txt");
+  static const CcdQuerySet vf = read_ccd_queries(test::test_data("ccd/vertex-face.txt"));
+  static const CcdQuerySet ee = read_ccd_queries(test::test_data("ccd/edge-edge.txt"));
   return name == "vertex-face" ? vf : ee;
 }
 

@@ -1,6 +1,6 @@
 // checked_closed_surface on surfaces of 2.5k to 100k triangles (issue 21): the check that stands
 // between a surface file and tetrahedralisation must not cost more than reading the file.
-//   sphere1K        the largest of the shared triMeshes (2,474 triangles)
+//   sphere1K        the largest of the IPC triMeshes (2,474 triangles)
 //   armadillo13K    the boundary of the IPC Armadillo tet mesh (17,296 triangles, a scan)
 //   icosphere/6     a subdivided icosahedron, 81,920 triangles
 //   box/91          a box with 91 x 91 grids for faces, 99,372 triangles, every neighbour coplanar
@@ -23,15 +23,14 @@
 #include "engine/mesh/surface_check.hpp"
 #include "engine/mesh/surface_reader.hpp"
 #include "tests/engine/mesh/closed_surfaces.hpp"
+#include "tests/test_data.hpp"
 
 using namespace nexdyn;
 
 namespace {
 
-const std::filesystem::path kShared = std::filesystem::path(NEXDYN_SHARED_DATA_DIR) / "meshes";
-
 TriangleSurface armadillo() {
-  const TetMesh mesh = read_msh(kShared / "tetMeshes" / "Armadillo13K.msh");
+  const TetMesh mesh = read_msh(test::ipc_tet_mesh("Armadillo13K.msh"));
   return {mesh.positions, extract_surface(mesh).triangles};
 }
 
@@ -56,7 +55,7 @@ void register_surface(const std::string& name, const TriangleSurface& surface) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  register_surface("sphere1K", read_triangle_surface(kShared / "triMeshes" / "sphere1K.obj"));
+  register_surface("sphere1K", read_triangle_surface(test::ipc_tri_mesh("sphere1K.obj")));
   register_surface("armadillo13K", armadillo());
   register_surface("icosphere/6", test::icosphere(6));
   register_surface("box/91", test::grid_box(91));

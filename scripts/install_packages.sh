@@ -1,10 +1,11 @@
 # Sourced by build.sh and scripts/fuzz.sh: the Debian packages the build needs (TetGen for surface
-# meshes, libpng for `nexdyn render`, gnuplot for `nexdyn plot`), and a function
+# meshes, libpng for `nexdyn render`, gnuplot for `nexdyn plot`, Debian's Python 3 for the scripts
+# the README shows), and a function
 # that installs those of a list that are missing (apt-get update first: a fresh machine's
 # package lists can be empty; sudo only when not root).
 nexdyn_packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libembree-dev
                  libsuitesparse-dev libopenblas0-pthread doctest-dev libbenchmark-dev
-                 nlohmann-json3-dev libcli11-dev libtet1.5-dev libpng-dev gnuplot-nox)
+                 nlohmann-json3-dev libcli11-dev libtet1.5-dev libpng-dev gnuplot-nox python3)
 
 install_missing() {
   local missing=() p sudo=""

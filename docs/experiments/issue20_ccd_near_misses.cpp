@@ -4,7 +4,7 @@
 // root, after ./build.sh:
 //   g++ -O2 -std=c++20 -I. -I/usr/include/eigen3 docs/experiments/issue20_ccd_near_misses.cpp \
 //       build/engine/libnexdyn_engine.a build/kernels/libnexdyn_kernels.a -ltbb -o /tmp/near_misses
-//   /tmp/near_misses ../shared/data/ccd/vertex-face.txt
+//   /tmp/near_misses tests/data/ccd/vertex-face.txt
 #include "engine/ccd_queries.hpp"
 #include "kernels/ccd/ccd.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"

@@ -3,6 +3,7 @@
 // thread-count independence, the exact output line, and strict parsing with file:line errors.
 #include "engine/ccd_queries.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/test_data.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/task_arena.h>
@@ -15,7 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path shipped(const std::string& name) { return fs::path(NEXDYN_SHARED_DATA_DIR) / "ccd" / name; }
+fs::path shipped(const std::string& name) { return test::test_data("ccd/" + name); }
 
 std::string error_of(const fs::path& file) {
   try {

@@ -185,7 +185,7 @@ TEST_CASE("nasty inputs: nexdyn check and run exit 1 with one line and write not
                            "control_character_key.json"}) {
     const fs::path file = kNasty / name;
     const fs::path out = test::temp_dir("nasty_cli") / "out";
-    for (const std::string command : {"check " + file.string(), "run " + file.string() + " --out " + out.string()}) {
+    for (const std::string& command : {"check " + file.string(), "run " + file.string() + " --out " + out.string()}) {
       const test::CommandResult result = test::run_cli(command);
       INFO("command: ", command, "\noutput: ", result.output);
       CHECK(result.exit_code == 1);

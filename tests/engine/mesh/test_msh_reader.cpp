@@ -1,4 +1,4 @@
-// Tests of read_msh / parse_msh: every IPC mesh of the shared data against the independently
+// Tests of read_msh / parse_msh: every IPC mesh in the repository against the independently
 // computed mesh_info.jsonl and against its own $Surface block, hand-written 2.2 and 4.1 files
 // exercising the format's corners, and one bad file per error class.
 #include <doctest/doctest.h>
@@ -17,6 +17,7 @@
 #include "engine/mesh/surface.hpp"
 #include "tests/engine/mesh/mesh_checks.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/test_data.hpp"
 
 namespace fs = std::filesystem;
 using namespace nexdyn;
@@ -30,7 +31,6 @@ using nexdyn::test::is_closed_and_consistently_wound;
 
 namespace {
 
-const fs::path kSharedMeshes = fs::path(NEXDYN_SHARED_DATA_DIR) / "meshes";
 const fs::path kTestMeshes = fs::path(NEXDYN_SOURCE_DIR) / "tests" / "data" / "meshes";
 
 bool contains(const std::string& text, const std::string& part) {
@@ -76,11 +76,13 @@ std::vector<int32_t> ipc_surface_block(const fs::path& path) {
   return flat;
 }
 
-std::vector<fs::path> shared_msh_files() {
+// Every IPC tet mesh in the repository: those of the shipped scenes and those kept for the tests.
+std::vector<fs::path> ipc_msh_files() {
   std::vector<fs::path> files;
-  for (const auto& entry : fs::recursive_directory_iterator(kSharedMeshes / "tetMeshes"))
-    if (entry.is_regular_file() && entry.path().extension() == ".msh")
-      files.push_back(entry.path());
+  for (const auto& entry : fs::recursive_directory_iterator(test::test_data("ipc-meshes/tetMeshes")))
+    if (entry.is_regular_file() && entry.path().extension() == ".msh") files.push_back(entry.path());
+  for (const auto& entry : fs::directory_iterator(fs::path(NEXDYN_SOURCE_DIR) / "scenes" / "meshes"))
+    if (entry.is_regular_file() && entry.path().extension() == ".msh") files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   return files;
 }
@@ -89,10 +91,10 @@ std::vector<fs::path> shared_msh_files() {
 
 TEST_SUITE_BEGIN("mesh");
 
-TEST_CASE("read_msh: every shared IPC mesh matches mesh_info.jsonl") {
+TEST_CASE("read_msh: every IPC mesh in the repository matches mesh_info.jsonl") {
   std::map<std::string, nlohmann::json> info;
   {
-    std::ifstream in(kSharedMeshes / "mesh_info.jsonl");
+    std::ifstream in(test::test_data("ipc-meshes/mesh_info.jsonl"));
     REQUIRE(in);
     std::string line;
     while (std::getline(in, line))
@@ -101,7 +103,7 @@ TEST_CASE("read_msh: every shared IPC mesh matches mesh_info.jsonl") {
         info[record.at("file").get<std::string>()] = record;
       }
   }
-  const std::vector<fs::path> files = shared_msh_files();
+  const std::vector<fs::path> files = ipc_msh_files();
   REQUIRE(!files.empty());
   CHECK(files.size() == info.size());
 

@@ -3,7 +3,7 @@
 // scripts/make_test_surfaces.py) holds one closed box in seven encodings, which must all read to
 // the same arrays, and one file per refusal, whose exact one-line message is asserted; smaller
 // cases are written inline. The self-intersection search is compared with its O(n^2) reference
-// on random triangle soups, and the shared triMeshes are surveyed: which are accepted and why the
+// on random triangle soups, and the IPC triMeshes are surveyed: which are accepted and why the
 // others are refused (confirmed independently by docs/experiments/issue21_surface_check.py).
 #include <doctest/doctest.h>
 
@@ -29,6 +29,7 @@
 #include "engine/mesh/surface_reader.hpp"
 #include "tests/engine/mesh/closed_surfaces.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/test_data.hpp"
 
 #include <tbb/global_control.h>
 
@@ -39,7 +40,6 @@ using nexdyn::test::mesh_error_of;
 namespace {
 
 const fs::path kSurfaces = fs::path(NEXDYN_SOURCE_DIR) / "tests" / "data" / "meshes" / "surfaces";
-const fs::path kSharedMeshes = fs::path(NEXDYN_SHARED_DATA_DIR) / "meshes";
 
 std::string stl_error(const std::string& bytes) {
   return mesh_error_of([&] { parse_stl(bytes, "in.stl"); });
@@ -479,7 +479,7 @@ TEST_CASE("checked_closed_surface: the boundaries of the IPC tet meshes are acce
   // neighbours exactly coplanar (the exact fallback of the orientation signs at work).
   for (const char* file : {"Armadillo13K.msh", "mat40x40.msh", "torus.msh"}) {
     INFO(file);
-    const TetMesh mesh = read_msh(kSharedMeshes / "tetMeshes" / file);
+    const TetMesh mesh = read_msh(test::ipc_tet_mesh(file));
     const SurfaceMesh boundary = extract_surface(mesh);
     TriangleSurface surface{mesh.positions, boundary.triangles};
     const auto start = std::chrono::steady_clock::now();
@@ -492,7 +492,7 @@ TEST_CASE("checked_closed_surface: the boundaries of the IPC tet meshes are acce
   }
 }
 
-TEST_CASE("checked_closed_surface: the shared triMeshes, which are closed and which are refused and why") {
+TEST_CASE("checked_closed_surface: the IPC triMeshes, which are closed and which are refused and why") {
   // Verdicts confirmed by docs/experiments/issue21_surface_check.py (exact integer geometry):
   // hole.obj is closed only to the eye: vertex 35 sits in the middle of the edge 6-11 (a T-junction),
   // so edges 11-35 and 35-6 have one triangle each, and 6-11 one on the other side. plane.obj is a
@@ -509,15 +509,17 @@ TEST_CASE("checked_closed_surface: the shared triMeshes, which are closed and wh
       {"plane.obj", "refused: not closed, edge 3-2 is used by triangle 1 only (ids 1-based)"},
       {"sphere1K.obj", "accepted, 1239 vertices, 2474 triangles, volume 0.518477"},
   };
-  const fs::path root = kSharedMeshes / "triMeshes";
+  // The IPC triMeshes the scenes use are in scenes/meshes/, the others in tests/data/ipc-meshes/.
+  const fs::path root = test::test_data("ipc-meshes/triMeshes");
   REQUIRE(fs::is_directory(root));
-  std::vector<fs::path> files;
+  std::vector<std::string> names = {"cube.obj", "cylinder.obj", "sphere1K.obj"};
   for (const auto& entry : fs::recursive_directory_iterator(root))
-    if (entry.is_regular_file() && entry.path().extension() == ".obj") files.push_back(entry.path());
-  std::sort(files.begin(), files.end());
+    if (entry.is_regular_file() && entry.path().extension() == ".obj")
+      names.push_back(fs::relative(entry.path(), root).generic_string());
+  std::sort(names.begin(), names.end());
   std::map<std::string, std::string> found;
-  for (const fs::path& path : files) {
-    const std::string name = fs::relative(path, root).generic_string();
+  for (const std::string& name : names) {
+    const fs::path path = test::ipc_tri_mesh(name);
     const TriangleSurface surface = read_triangle_surface(path);
     const auto start = std::chrono::steady_clock::now();
     std::string verdict;

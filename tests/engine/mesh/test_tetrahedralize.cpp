@@ -11,6 +11,7 @@
 #include "engine/scene/surface_body.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/test_data.hpp"
 
 #include <algorithm>
 #include <array>
@@ -21,7 +22,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path tri_meshes() { return fs::path(NEXDYN_SHARED_DATA_DIR) / "meshes" / "triMeshes"; }
 
 // The closed surfaces among the shipped IPC triangle meshes: all but plane.obj (an open square)
 // and erleben/hole.obj (T-junctions), which test_surface_input.cpp shows refused.
@@ -64,7 +64,7 @@ TEST_CASE("tetrahedralize: every closed IPC surface keeps its surface and volume
   for (const char* name : kClosedTriMeshes) {
     const std::string file = name;  // doctest shows a char* as an address
     CAPTURE(file);
-    const TriangleSurface surface = checked_closed_surface(read_triangle_surface(tri_meshes() / name), name);
+    const TriangleSurface surface = checked_closed_surface(read_triangle_surface(test::ipc_tri_mesh(name)), name);
     const size_t n = surface.positions.size() / 3;
     // By default the surface's triangles as given: its vertices first and unmoved, its triangles
     // (winding included) the tet mesh's boundary, so the two surfaces are exactly the same.
@@ -128,7 +128,7 @@ TEST_CASE("tetrahedralize: every closed IPC surface keeps its surface and volume
 
 TEST_CASE("tetrahedralize: a smaller max_volume gives more tets, settings out of range are refused") {
   const TriangleSurface surface =
-      checked_closed_surface(read_triangle_surface(tri_meshes() / "cube.obj"), "cube.obj");
+      checked_closed_surface(read_triangle_surface(test::ipc_tri_mesh("cube.obj")), "cube.obj");
   TetrahedralizeSettings coarse, fine;
   coarse.refine_surface = fine.refine_surface = true;
   coarse.max_volume = 0.05;
@@ -150,7 +150,7 @@ TEST_CASE("tetrahedralize: a smaller max_volume gives more tets, settings out of
 
 TEST_CASE("msh_document: read_msh gives back the same TetMesh") {
   const TriangleSurface surface =
-      checked_closed_surface(read_triangle_surface(tri_meshes() / "sphere1K.obj"), "sphere1K.obj");
+      checked_closed_surface(read_triangle_surface(test::ipc_tri_mesh("sphere1K.obj")), "sphere1K.obj");
   const TetMesh mesh = tetrahedralize_surface(surface.positions, surface.triangles, {}, "sphere1K.obj");
   const TetMesh back = parse_msh(msh_document(mesh), "sphere.msh");
   CHECK(back.positions == mesh.positions);
@@ -160,7 +160,7 @@ TEST_CASE("msh_document: read_msh gives back the same TetMesh") {
 TEST_CASE("surface bodies: the mesh cache is reused while the file and settings stay the same") {
   const auto dir = test::temp_dir("surface_cache");
   const fs::path surface = dir / "cyl.obj";
-  fs::copy_file(tri_meshes() / "cylinder.obj", surface);
+  fs::copy_file(test::ipc_tri_mesh("cylinder.obj"), surface);
   const fs::path cache = dir / "meshes";
   const SurfaceBody first = surface_body(surface, {}, cache);
   CHECK_FALSE(first.reused);
@@ -185,7 +185,7 @@ TEST_CASE("surface bodies: the mesh cache is reused while the file and settings 
   CHECK(edited.cache_file != first.cache_file);
   // A damaged cache file is made again.
   test::write_text(first.cache_file, "$MeshFormat\n2.2 0 8\n");
-  fs::copy_file(tri_meshes() / "cylinder.obj", surface, fs::copy_options::overwrite_existing);
+  fs::copy_file(test::ipc_tri_mesh("cylinder.obj"), surface, fs::copy_options::overwrite_existing);
   const SurfaceBody repaired = surface_body(surface, {}, cache);
   CHECK_FALSE(repaired.reused);
   CHECK(repaired.mesh.tets == first.mesh.tets);
@@ -194,13 +194,13 @@ TEST_CASE("surface bodies: the mesh cache is reused while the file and settings 
 
 TEST_CASE("surface bodies: nexdyn mesh writes a .msh, run keeps its tets in DIR/meshes") {
   const auto dir = test::temp_dir("mesh_cli");
-  const auto mesh = test::run_cli("mesh " + (tri_meshes() / "sphere1K.obj").string() + " " + (dir / "s.msh").string() +
+  const auto mesh = test::run_cli("mesh " + (test::ipc_tri_mesh("sphere1K.obj")).string() + " " + (dir / "s.msh").string() +
                                   " --max-volume 0.002");
   REQUIRE(mesh.exit_code == 0);
   CHECK(mesh.output.find("s.msh: ") != std::string::npos);
   const TetMesh written = read_msh(dir / "s.msh");
   CHECK(written.num_vertices() > 1239);
-  CHECK(test::run_cli("mesh " + (tri_meshes() / "sphere1K.obj").string() + " " + (dir / "s.vtk").string()).exit_code == 1);
+  CHECK(test::run_cli("mesh " + (test::ipc_tri_mesh("sphere1K.obj")).string() + " " + (dir / "s.vtk").string()).exit_code == 1);
 
   const auto run = test::run_cli("run " + test::scene_path("surface_drop.json").string() + " --steps 2 --quiet --out " +
                                  (dir / "run").string());
@@ -226,7 +226,7 @@ TEST_CASE("surface bodies: bad surfaces and settings are one line naming the fil
   const std::string open = refusal(R"({"mesh": ")" + (corpus / "open_box.obj").string() + R"(", "material": "m"})");
   CHECK(open.find("open_box.obj") != std::string::npos);
   CHECK(open.find("bodies[0].mesh") != std::string::npos);
-  const std::string quality = refusal(R"({"mesh": ")" + (tri_meshes() / "cube.obj").string() +
+  const std::string quality = refusal(R"({"mesh": ")" + (test::ipc_tri_mesh("cube.obj")).string() +
                                       R"(", "material": "m", "tetrahedralize": {"min_quality": 0.7}})");
   CHECK(quality.find("min_quality") != std::string::npos);
   const std::string misplaced = refusal(R"({"mesh": ")" + test::scene_path("meshes/cube.msh").string() +
