@@ -55,10 +55,6 @@ float round_up(double x) {
   return f;
 }
 
-// Items per TBB chunk when converting boxes; the conversion is per item, so the grain does not
-// affect results, only scheduling overhead.
-constexpr size_t kConvertGrain = 4096;
-
 std::vector<FloatAabb> to_float_boxes(const double* lower, const double* upper, int32_t n) {
   std::vector<FloatAabb> boxes(static_cast<size_t>(n));
   auto convert = [&](const tbb::blocked_range<size_t>& r) {
@@ -72,7 +68,7 @@ std::vector<FloatAabb> to_float_boxes(const double* lower, const double* upper, 
 #if NEXDYN_PARALLEL_STD_THREADS
   convert(tbb::blocked_range<size_t>(0, boxes.size()));  // see EmbreeDevice()
 #else
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), kConvertGrain), convert);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), kBoxConvertGrain), convert);
 #endif
   return boxes;
 }

@@ -16,6 +16,7 @@
 // lower <= upper; Embree silently drops invalid boxes, which would lose pairs.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -23,6 +24,10 @@
 typedef struct RTCDeviceTy* RTCDevice;
 
 namespace nexdyn {
+
+// Boxes per TBB chunk when the double boxes are rounded out to floats; the conversion is per box,
+// so the grain changes only the scheduling, never a result.
+inline constexpr size_t kBoxConvertGrain = 4096;
 
 using IndexPair = std::pair<int32_t, int32_t>;
 

@@ -42,6 +42,15 @@ void std_thread_chunks(int64_t num_chunks, Chunk&& chunk) {
 }
 #endif
 
+// How many loops were cut into more than one chunk since the process started (parallel_for,
+// for_each_chunk, deterministic_sum and grouped_sum with more than one chunk, and run_both).
+// A test that compares 1 and 2 threads asserts it grew during its run: a loop of one chunk runs
+// on the calling thread alone, and then "the same on 1 and 2 threads" says nothing.
+inline std::atomic<int64_t>& split_loop_count() {
+  static std::atomic<int64_t> count{0};
+  return count;
+}
+
 // Default number of items per chunk: large enough to amortise scheduling, small enough to balance
 // two cores on the smallest scenes we care about.
 inline constexpr int64_t kDefaultGrain = 256;
@@ -54,6 +63,7 @@ void parallel_for(int64_t n, Body&& body, int64_t grain = kDefaultGrain) {
     body(int64_t{0}, n);
     return;
   }
+  split_loop_count().fetch_add(1, std::memory_order_relaxed);
 #if NEXDYN_PARALLEL_STD_THREADS
   std_thread_chunks((n + grain - 1) / grain, [&](int64_t c) { body(c * grain, std::min(n, (c + 1) * grain)); });
 #else
@@ -71,6 +81,7 @@ template <typename Chunk>
 int64_t for_each_chunk(int64_t n, int64_t grain, Chunk&& chunk) {
   if (n <= 0) return 0;
   const int64_t num_chunks = (n + grain - 1) / grain;
+  if (num_chunks > 1) split_loop_count().fetch_add(1, std::memory_order_relaxed);
 #if NEXDYN_PARALLEL_STD_THREADS
   std_thread_chunks(num_chunks, [&](int64_t c) { chunk(c, c * grain, std::min(n, (c + 1) * grain)); });
   return num_chunks;
@@ -124,6 +135,7 @@ void grouped_sum(int64_t n, int64_t grain, GroupOf&& group_of, Run&& run, double
 // Runs a() and b() at the same time (each may use parallel_for itself).
 template <typename A, typename B>
 void run_both(A&& a, B&& b) {
+  split_loop_count().fetch_add(1, std::memory_order_relaxed);
 #if NEXDYN_PARALLEL_STD_THREADS
   std::thread other(b);
   a();

@@ -14,6 +14,7 @@
 #include "engine/plot/stats_plot.hpp"
 #include "engine/mesh/msh_writer.hpp"
 #include "engine/output/frame_writer.hpp"
+#include "engine/parallel.hpp"
 #include "engine/render/render_command.hpp"
 #include "engine/render/view_file.hpp"
 #include "engine/run.hpp"
@@ -29,9 +30,11 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <limits>
 #include <memory>
+#include <string>
 
 namespace {
 
@@ -284,9 +287,26 @@ int report(const RunSummary& summary, const std::filesystem::path& out, bool qui
   return 0;
 }
 
+// A test hook: with NEXDYN_TEST_SPLIT_LOOPS=FILE in the environment, the process writes into FILE,
+// when it exits, how many parallel loops it cut into several chunks (engine/parallel.hpp), so
+// that the tests comparing --threads 1 and 2 can check that the run had work to share out.
+void report_split_loops_at_exit() {
+  static std::string file;
+  if (const char* path = std::getenv("NEXDYN_TEST_SPLIT_LOOPS")) {
+    file = path;
+    std::atexit([] {
+      if (FILE* f = std::fopen(file.c_str(), "w")) {
+        std::fprintf(f, "%lld\n", static_cast<long long>(split_loop_count().load()));
+        std::fclose(f);
+      }
+    });
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  report_split_loops_at_exit();
   CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies"};
   CliArgs a;
   define_cli(app, a);

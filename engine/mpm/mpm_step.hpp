@@ -53,6 +53,9 @@
 
 namespace nexdyn {
 
+// Compact node entries per chunk of the Newton system's sums (mpm_step_system.cpp).
+inline constexpr int64_t kMpmNodeGrain = 4096;
+
 struct MpmStepSettings {
   IntegratorParams integrator;
   double tolerance = 1e-5;   // [m/s] Newton stops when max |increment| / h is below it

@@ -19,7 +19,6 @@ namespace nexdyn {
 
 namespace {
 
-constexpr int64_t kNodeGrain = 4096;  // compact node entries per chunk of a sum
 constexpr int64_t kMaxCgIterations = 5000;
 
 // Chunked sum of f(i) over [0, n), the same bits on any thread count.
@@ -32,7 +31,7 @@ double node_sum(int64_t n, F&& f) {
         for (int64_t i = begin; i < end; ++i) sum += f(i);
         return sum;
       },
-      kNodeGrain);
+      kMpmNodeGrain);
 }
 
 double dot(const std::vector<double>& a, const std::vector<double>& b) {

@@ -8,14 +8,13 @@
 namespace nexdyn {
 
 namespace {
-constexpr int64_t kGrain = 4096;
 
 double dot(const std::vector<double>& a, const std::vector<double>& b) {
   return deterministic_sum(static_cast<int64_t>(a.size()), [&](int64_t begin, int64_t end) {
     double s = 0.0;
     for (int64_t i = begin; i < end; ++i) s += a[i] * b[i];
     return s;
-  }, kGrain);
+  }, kLinearizedGrain);
 }
 
 double max_abs(const std::vector<double>& a) {
@@ -92,7 +91,7 @@ void LinearizedStep::apply(const double* w, double* out) const {
   const int64_t n = model_.num_dofs();
   parallel_for(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) out[i] = held_[i] ? 0.0 : out[i] + diag_[i] * w[i];
-  }, kGrain);
+  }, kLinearizedGrain);
 }
 
 LinearizedResult LinearizedStep::solve_pcg(const StepContext& ctx, const DampingTerm* damping, std::vector<double>& x) {

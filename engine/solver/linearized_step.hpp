@@ -33,6 +33,10 @@
 
 namespace nexdyn {
 
+// Entries per chunk of the step's vector sums and updates (a system needs more DOFs than this for
+// them to run on several threads).
+inline constexpr int64_t kLinearizedGrain = 4096;
+
 struct LinearizedResult {
   StepStatus status = StepStatus::ok;
   std::string message;     // why, when not ok

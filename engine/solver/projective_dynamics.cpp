@@ -24,10 +24,6 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// Tets per chunk of the per-tet passes, vertices per chunk of the gathers.
-constexpr int64_t kTetGrain = 512;
-constexpr int64_t kVertexGrain = 1024;
-
 // The 4x3 D of tet t (rows d_a): F = sum_a x_a d_a^T. Rows 1..3 are the rows of Dm^-1
 // (column-major in the model), row 0 minus their sum.
 inline void tet_rows(const Model& model, int64_t t, Eigen::Vector3d d[4]) {
@@ -188,7 +184,7 @@ void ProjectiveDynamics::tet_to_vertices(TetFn&& fn, std::vector<double>& out) {
   double* slab = slab_.data();
   parallel_for(model_.num_tets, [&](int64_t begin, int64_t end) {
     for (int64_t t = begin; t < end; ++t) fn(t, slab + 12 * t);
-  }, kTetGrain);
+  }, kPdTetGrain);
   const int64_t nf = num_free_;
   out.resize(3 * nf);
   parallel_for(nf, [&](int64_t begin, int64_t end) {
@@ -200,7 +196,7 @@ void ProjectiveDynamics::tet_to_vertices(TetFn&& fn, std::vector<double>& out) {
       }
       for (int d = 0; d < 3; ++d) out[d * nf + i] = sum[d];
     }
-  }, kVertexGrain);
+  }, kPdVertexGrain);
 }
 
 void ProjectiveDynamics::local_step(double s, const double* x) {
@@ -223,7 +219,7 @@ void ProjectiveDynamics::local_step(double s, const double* x) {
         for (int k = 0; k < 3; ++k) out[3 * a + k] = w * r[k];
       }
     }
-  }, kTetGrain);
+  }, kPdTetGrain);
   stats_.local_seconds += seconds_since(start);
   stats_.local_tets += model_.num_tets;
 }
@@ -246,7 +242,7 @@ bool ProjectiveDynamics::global_step(double s, const double* x_tilde, double* xh
       for (int d = 0; d < 3; ++d)
         rhs_[d * nf + i] = m * (x_tilde[3 * v + d] + s * g[d]) + sum[d] + w * plane_target_[3 * i + d];
     }
-  }, kVertexGrain);
+  }, kPdVertexGrain);
   for (int d = 0; d < 3; ++d) {
     const StepStatus status = cholmod_.solve(rhs_.data() + d * nf, sol_.data() + d * nf);
     if (status != StepStatus::ok) {
@@ -259,7 +255,7 @@ bool ProjectiveDynamics::global_step(double s, const double* x_tilde, double* xh
   parallel_for(nf, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i)
       for (int d = 0; d < 3; ++d) xhat[3 * int64_t{free_vertex_[i]} + d] = sol_[d * nf + i];
-  }, kVertexGrain);
+  }, kPdVertexGrain);
   stats_.global_seconds += seconds_since(start);
   return true;
 }
@@ -282,7 +278,7 @@ void ProjectiveDynamics::update_planes(const double* x) {
       plane_count_[i] = count;
       for (int d = 0; d < 3; ++d) plane_target_[3 * i + d] = target[d];
     }
-  }, kVertexGrain);
+  }, kPdVertexGrain);
 }
 
 void ProjectiveDynamics::project_onto_planes(double* x) const {
@@ -499,7 +495,7 @@ double ProjectiveDynamics::energy(double s, const std::vector<double>& x_tilde, 
       sum += model_.mass[v] * (0.5 * kinetic - s * work);
     }
     return sum;
-  }, kVertexGrain);
+  }, kPdVertexGrain);
   const double elastic = deterministic_sum(model_.num_tets, [&](int64_t begin, int64_t end) {
     double sum = 0.0;
     Eigen::Vector3d d[4];
@@ -509,7 +505,7 @@ double ProjectiveDynamics::energy(double s, const std::vector<double>& x_tilde, 
       sum += 0.5 * weight_[t] * (F - closest_rotation(F)).squaredNorm();  // mu V ||F - R||^2
     }
     return sum;
-  }, kTetGrain);
+  }, kPdTetGrain);
   return inertia + s * elastic;
 }
 

@@ -70,6 +70,10 @@
 
 namespace nexdyn {
 
+// Tets per chunk of the per-tet passes, vertices per chunk of the gathers.
+inline constexpr int64_t kPdTetGrain = 512;
+inline constexpr int64_t kPdVertexGrain = 1024;
+
 struct PdSettings {
   double tolerance = 1e-5;        // [m/s] on max|xhat - x| / dt, as Newton's increment
   int max_iterations = 2000;

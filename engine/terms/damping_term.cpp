@@ -8,7 +8,6 @@ namespace nexdyn {
 
 namespace {
 constexpr int64_t kTetGrain = 64;
-constexpr int64_t kVertexGrain = 1024;
 }  // namespace
 
 bool DampingTerm::wanted(const Model& model) {
@@ -61,7 +60,7 @@ void DampingTerm::velocity(const double* x, double* v) const {
   const int64_t n = model_.num_dofs();
   parallel_for(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) v[i] = v_pred_[i] + k_ * (x[i] - x_tilde_[i]);
-  }, 3 * kVertexGrain);
+  }, 3 * kDampingVertexGrain);
 }
 
 void DampingTerm::damped(const double* v, double* out) const {
@@ -70,7 +69,7 @@ void DampingTerm::damped(const double* v, double* out) const {
     for (int64_t i = b; i < e; ++i)
       for (int d = 0; d < 3; ++d)
         out[3 * i + d] = (stiffness_ ? out[3 * i + d] : 0.0) + vertex_a2m_[i] * v[3 * i + d];
-  }, kVertexGrain);
+  }, kDampingVertexGrain);
 }
 
 double DampingTerm::mass_quadratic(const double* v, int64_t begin, int64_t end) const {
@@ -83,7 +82,7 @@ double DampingTerm::mass_quadratic(const double* v, int64_t begin, int64_t end) 
 double DampingTerm::quadratic(const double* v) const {
   const double sum = deterministic_sum(model_.num_vertices, [&](int64_t b, int64_t e) {
     return mass_quadratic(v, b, e);
-  }, kVertexGrain);
+  }, kDampingVertexGrain);
   return stiffness_ ? sum + stiffness_slabs_->quadratic(v) : sum;
 }
 
@@ -100,7 +99,7 @@ void DampingTerm::add_group_energy(const double* x, const int32_t* group_of_vert
   velocity(x, v_.data());
   const double* v = v_.data();
   const double half_over_k = 0.5 / k_;
-  grouped_sum(model_.num_vertices, kVertexGrain, [&](int64_t i) { return group_of_vertex[i]; },
+  grouped_sum(model_.num_vertices, kDampingVertexGrain, [&](int64_t i) { return group_of_vertex[i]; },
               [&](int64_t b, int64_t e) { return half_over_k * mass_quadratic(v, b, e); }, out);
   if (!stiffness_) return;
   const int32_t* tets = model_.tets.data();
@@ -125,7 +124,7 @@ void DampingTerm::add_gradient(const double* x, double weight, double* grad) {
   damped(v_.data(), dv_.data());
   parallel_for(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) grad[i] += weight * dv_[i];
-  }, 3 * kVertexGrain);
+  }, 3 * kDampingVertexGrain);
 }
 
 void DampingTerm::add_derivatives(const double* x, double weight, const DerivativeOutput& out) {
@@ -135,7 +134,7 @@ void DampingTerm::add_derivatives(const double* x, double weight, const Derivati
   // subset: the others keep the values of an earlier iteration).
   const double w = weight * k_;
   const IndexRanges all{{0, model_.num_vertices}};
-  parallel_for_ranges(out.subset ? out.subset->vertices : all, kVertexGrain, [&](int64_t b, int64_t e) {
+  parallel_for_ranges(out.subset ? out.subset->vertices : all, kDampingVertexGrain, [&](int64_t b, int64_t e) {
     for (int64_t v = b; v < e; ++v) {
       if (stiffness_)
         for (int64_t i = pattern_.col_ptr[3 * v]; i < pattern_.col_ptr[3 * v + 3]; ++i)

@@ -30,6 +30,9 @@
 
 namespace nexdyn {
 
+// Vertices per chunk of the term's per-vertex loops (its per-tet loops take 64 tets a chunk).
+inline constexpr int64_t kDampingVertexGrain = 1024;
+
 class DampingTerm final : public PotentialTerm {
  public:
   // state: the State the simulation advances; read at begin_step for x_n, v_n, a_n, abar_n.

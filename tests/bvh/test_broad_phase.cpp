@@ -116,8 +116,12 @@ TEST_CASE("broad phase: cross overlaps equal brute force on random boxes") {
 }
 
 TEST_CASE("broad phase: results are identical with 1 and 2 threads") {
+  // More boxes than a conversion chunk holds, and enough for Embree to build and collide its
+  // trees in parallel tasks.
   const Boxes a = random_boxes(6000, 17, 0.0);
   const Boxes b = random_boxes(5000, 19, 0.0);
+  CHECK(a.lower.size() / 3 > nexdyn::kBoxConvertGrain);
+  CHECK(b.lower.size() / 3 > nexdyn::kBoxConvertGrain);
   std::vector<IndexPair> self_by_threads[2];
   std::vector<IndexPair> cross_by_threads[2];
   for (int t = 0; t < 2; ++t) {

@@ -1,7 +1,8 @@
 // The CCD query runner (engine/ccd_queries) and `nexdyn ccd`: zero false negatives on both shipped
-// query files with exact ground truth (Wang et al. 2021 sample queries), the false-positive rate,
+// query files with exact ground truth (Wang et al. 2021 sample queries), the false positives pinned,
 // thread-count independence, the exact output line, and strict parsing with file:line errors.
 #include "engine/ccd_queries.hpp"
+#include "engine/parallel.hpp"
 #include "tests/engine/test_support.hpp"
 #include "tests/test_data.hpp"
 
@@ -32,20 +33,26 @@ const char* kGoodLine =
 
 }  // namespace
 
-TEST_CASE("ccd: zero false negatives, and no more false positives than Tight-Inclusion, on the shipped query files") {
-  // Tight-Inclusion (Wang et al. 2021, tolerance 1e-6, no minimum distance) reports 23 false
-  // positives on vertex-face.txt and 46 on edge-edge.txt (issue 20).
-  for (const char* name : {"vertex-face.txt", "edge-edge.txt"}) {
-    const CcdQuerySet set = read_ccd_queries(shipped(name));
+TEST_CASE("ccd: zero false negatives, and false positives pinned at the engine's own counts, on the sample query files") {
+  // The engine reports 19 false positives on vertex-face.txt and 23 on edge-edge.txt (issue 20;
+  // Tight-Inclusion, tolerance 1e-6, reports 23 and 46). The counts are pinned: a change that
+  // makes either larger fails here, and one that makes it smaller should lower the pin.
+  struct Expected {
+    const char* file;
+    int64_t queries, positives, false_positives;
+  };
+  for (const Expected& e : {Expected{"vertex-face.txt", 1109, 83, 19}, Expected{"edge-edge.txt", 1486, 62, 23}}) {
+    CAPTURE(e.file);
+    const CcdQuerySet set = read_ccd_queries(shipped(e.file));
     const CcdQueryStats stats = run_ccd_queries(set);
     CHECK(stats.queries == set.size());
-    CHECK(stats.queries == (std::string(name) == "vertex-face.txt" ? 1109 : 1486));
-    CHECK(stats.positives == (std::string(name) == "vertex-face.txt" ? 83 : 62));
+    CHECK(stats.queries == e.queries);
+    CHECK(stats.positives == e.positives);
     CHECK(stats.false_negatives == 0);
     const double fp_rate = double(stats.false_positives) / double(stats.queries);
-    MESSAGE(name << ": false positives " << stats.false_positives << " of " << stats.queries << " ("
-                 << 100.0 * fp_rate << "%), " << stats.queries / stats.seconds << " queries/s");
-    CHECK(stats.false_positives <= (std::string(name) == "vertex-face.txt" ? 23 : 46));
+    MESSAGE(e.file << ": false positives " << stats.false_positives << " of " << stats.queries << " ("
+                   << 100.0 * fp_rate << "%), " << stats.queries / stats.seconds << " queries/s");
+    CHECK(stats.false_positives <= e.false_positives);
   }
 }
 
@@ -58,7 +65,9 @@ TEST_CASE("ccd: query results do not depend on the thread count") {
     for (int64_t i = 0; i < set.size(); ++i) serial[i] = ccd_query_collides(set.kind, set.points.data() + 24 * i);
     CcdQueryStats s1, s2;
     tbb::task_arena(1).execute([&] { s1 = run_ccd_queries(set); });
+    const int64_t split_before = split_loop_count().load();
     tbb::task_arena(2).execute([&] { s2 = run_ccd_queries(set); });
+    CHECK(split_loop_count().load() > split_before);  // the queries were shared out in chunks
     CHECK(s1.reported == serial);
     CHECK(s2.reported == serial);
     int64_t fp = 0, fn = 0;

@@ -7,6 +7,7 @@
 #include "engine/terms/damping_term.hpp"
 #include "tests/engine/cantilever_support.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -25,14 +26,14 @@ namespace {
 // share a frequency, and the mesh's asymmetry trades energy between them in a slow beat that
 // looks like damping of the vertical one.
 std::string beam_json(const std::string& damping, const std::string& integrator = "newmark",
-                      const std::string& solver = "") {
+                      const std::string& solver = "", const std::string& cells = "20, 2, 4") {
   return R"({
     "gravity": [0, -0.01, 0],
     "time": { "dt": 0.01, "integrator": ")" + integrator + R"(", "energy_guard": false },
     "solver": { "tolerance": 1e-9)" + solver + R"( },
     "materials": { "rubber": { "model": "neohookean", "youngs": 1e7, "poisson": 0.3, "density": 1000)" +
          (damping.empty() ? "" : ", \"damping\": " + damping) + R"( } },
-    "bodies": [ { "box": { "size": [2.0, 0.2, 0.4], "cells": [20, 2, 4] }, "material": "rubber" } ],
+    "bodies": [ { "box": { "size": [2.0, 0.2, 0.4], "cells": [)" + cells + R"(] }, "material": "rubber" } ],
     "boundary": [ { "box_min": [-1.001, -1, -1], "box_max": [-0.999, 1, 1], "fix": true } ]
   })";
 }
@@ -195,8 +196,11 @@ TEST_CASE("damping: gradient and Hessian agree with finite differences of the te
 
 TEST_CASE("damping: steps are bitwise the same on 1 and 2 threads") {
   auto final_x = [](int threads) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-    Scene scene = test::scene_from_json(beam_json("{\"mass\": 0.5, \"stiffness\": 0.004}"), "damped_threads");
+    test::ThreadsScope limit(threads);
+    // 1,845 vertices: the term's per-vertex loops are cut into chunks too.
+    Scene scene = test::scene_from_json(beam_json("{\"mass\": 0.5, \"stiffness\": 0.004}", "newmark", "", "40, 4, 8"),
+                                        "damped_threads");
+    CHECK(scene.model.num_vertices > kDampingVertexGrain);
     Simulation sim(scene);
     for (int i = 0; i < 5; ++i) REQUIRE(sim.step().status == StepStatus::ok);
     std::vector<double> x = sim.state().x;

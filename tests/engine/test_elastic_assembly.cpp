@@ -6,6 +6,7 @@
 #include "engine/solver/hessian_pattern.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -102,7 +103,7 @@ TEST_CASE("assembly is bitwise identical with 1 and 2 threads") {
   const Model& model = scene.model;
   const std::vector<double> x = test::perturbed(model.rest_positions, 0.005, 5);
   auto evaluate = [&](int threads) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     ElasticAssembly assembly(model);
     std::vector<double> out(model.num_dofs() + assembly.pattern().nnz() + 1);
     assembly.gradient_hessian(x.data(), out.data(), out.data() + model.num_dofs());

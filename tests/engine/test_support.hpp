@@ -67,9 +67,10 @@ struct CommandResult {
   std::string output;  // stdout and stderr together
 };
 
-// Runs the nexdyn binary with the given argument string.
-inline CommandResult run_cli(const std::string& args) {
-  const std::string cmd = std::string(NEXDYN_CLI_PATH) + " " + args + " 2>&1";
+// Runs the nexdyn binary with the given argument string, with `env` ("NAME=VALUE ...") added to
+// its environment.
+inline CommandResult run_cli_with_env(const std::string& env, const std::string& args) {
+  const std::string cmd = env + " " + std::string(NEXDYN_CLI_PATH) + " " + args + " 2>&1";
   CommandResult result;
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return result;
@@ -78,6 +79,25 @@ inline CommandResult run_cli(const std::string& args) {
   while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) result.output.append(buf, n);
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+// Runs the nexdyn binary with the given argument string.
+inline CommandResult run_cli(const std::string& args) { return run_cli_with_env("", args); }
+
+// run_cli on `threads` threads (--threads is appended) with the test hook NEXDYN_TEST_SPLIT_LOOPS
+// (engine/cli/main.cpp) set: the process must have cut at least one parallel loop into several
+// chunks, or comparing it with another thread count proves nothing.
+inline CommandResult run_cli_on_threads(const std::string& args, int threads) {
+  const std::filesystem::path report = temp_dir("split_loops") / "count.txt";
+  std::filesystem::remove(report);
+  const CommandResult result = run_cli_with_env("NEXDYN_TEST_SPLIT_LOOPS=" + report.string(),
+                                                args + " --threads " + std::to_string(threads));
+  std::ifstream in(report);
+  long long split = -1;
+  in >> split;
+  INFO("nexdyn " << args << " --threads " << threads << ": loops cut into several chunks: " << split);
+  CHECK(split >= 1);
   return result;
 }
 

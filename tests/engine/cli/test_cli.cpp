@@ -34,8 +34,8 @@ TEST_CASE("nexdyn check validates a scene and prints its size") {
 TEST_CASE("nexdyn run writes stats.csv with the exact header and frames and scene.pvd and threads do not change it") {
   const fs::path out1 = test::temp_dir("cli_threads1"), out2 = test::temp_dir("cli_threads2");
   const std::string scene = test::scene_path("cantilever.json").string();
-  const auto r1 = test::run_cli("run " + scene + " --steps 30 --threads 1 --quiet --out " + out1.string());
-  const auto r2 = test::run_cli("run " + scene + " --steps 30 --threads 2 --quiet --out " + out2.string());
+  const auto r1 = test::run_cli_on_threads("run " + scene + " --steps 30 --quiet --out " + out1.string(), 1);
+  const auto r2 = test::run_cli_on_threads("run " + scene + " --steps 30 --quiet --out " + out2.string(), 2);
   REQUIRE(r1.exit_code == 0);
   REQUIRE(r2.exit_code == 0);
   const auto rows1 = test::read_lines(out1 / "stats.csv");

@@ -14,6 +14,7 @@
 #include "kernels/distance/point_triangle_distance.hpp"
 #include "kernels/projection/psd_projection.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -93,7 +94,7 @@ TEST_CASE("merged Newton matrix equals elastic plus contact blocks, on 1 and 2 t
 
   auto assemble = [&](int threads, std::vector<double>& grad, std::vector<double>& values,
                       Eigen::MatrixXd* reference) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     ElasticAssembly elastic(model);
     BarrierPotential contact(model, kDhat);
     StepHistory history;

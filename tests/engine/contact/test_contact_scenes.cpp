@@ -167,8 +167,8 @@ TEST_CASE("scene head_on: momentum is conserved, the boxes bounce apart, newmark
 TEST_CASE("contact results do not depend on the number of threads") {
   const std::string scene = test::scene_path("head_on.json").string();
   const fs::path out1 = test::temp_dir("contact_threads1"), out2 = test::temp_dir("contact_threads2");
-  REQUIRE(test::run_cli("run " + scene + " --steps 30 --threads 1 --quiet --out " + out1.string()).exit_code == 0);
-  REQUIRE(test::run_cli("run " + scene + " --steps 30 --threads 2 --quiet --out " + out2.string()).exit_code == 0);
+  REQUIRE(test::run_cli_on_threads("run " + scene + " --steps 30 --quiet --out " + out1.string(), 1).exit_code == 0);
+  REQUIRE(test::run_cli_on_threads("run " + scene + " --steps 30 --quiet --out " + out2.string(), 2).exit_code == 0);
   std::vector<std::string> a = test::read_lines(out1 / "stats.csv"), b = test::read_lines(out2 / "stats.csv");
   REQUIRE(a.size() == b.size());
   for (size_t i = 0; i < a.size(); ++i) {
@@ -385,8 +385,8 @@ TEST_CASE("scene stress/pile_10: islands solved on 1 and 2 threads give bitwise 
   const std::string scene = test::scene_path("stress/pile_10.json").string();
   const fs::path out1 = test::temp_dir("pile10_threads1"), out2 = test::temp_dir("pile10_threads2");
   for (const auto& [threads, out] : {std::pair{1, out1}, std::pair{2, out2}}) {
-    const test::CommandResult r = test::run_cli("run " + scene + " --steps 40 --threads " + std::to_string(threads) +
-                                                " --quiet --out " + out.string());
+    const test::CommandResult r =
+        test::run_cli_on_threads("run " + scene + " --steps 40 --quiet --out " + out.string(), threads);
     INFO(r.output);
     REQUIRE(r.exit_code == 0);
   }

@@ -8,6 +8,7 @@
 #include "engine/contact/friction_potential.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -100,7 +101,7 @@ namespace {
 // friction contact is vertex-triangle or edge-edge between the two bodies (the fixed block's
 // vertices held). Returns the positions after `steps` steps of 5 ms.
 std::vector<double> block_on_block(int threads, int steps) {
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  test::ThreadsScope limit(threads);
   const Scene scene = test::scene_from_json(R"({
     "gravity": [0, -9.81, 0],
     "time": { "dt": 0.005, "integrator": "implicit_euler" },

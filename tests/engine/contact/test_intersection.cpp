@@ -4,6 +4,7 @@
 // definition on two box meshes, and the winding-number inside test on a box and a sphere.
 #include "engine/contact/intersection.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
@@ -446,7 +447,7 @@ TEST_CASE("intersection: triangle pairs of overlapping cubes equal the O(n^2) de
             (surface.triangles[3 * j] < first_of_second));
     // Independent of the thread count.
     for (int threads = 1; threads <= 2; ++threads) {
-      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      test::ThreadsScope limit(threads);
       CHECK(intersecting_pairs(both, surface) == pairs);
     }
   }

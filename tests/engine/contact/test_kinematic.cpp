@@ -5,6 +5,7 @@
 #include "engine/kinematic_targets.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -126,7 +127,7 @@ struct PushRun {
 };
 
 PushRun push(int threads, int steps) {
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  test::ThreadsScope limit(threads);
   const Scene scene = load_scene(test::scene_path("block_push.json"));
   Simulation simulation(scene);
   for (int s = 0; s < steps; ++s) REQUIRE(simulation.step().status == StepStatus::ok);

@@ -29,6 +29,7 @@
 #include "engine/mesh/surface_reader.hpp"
 #include "tests/engine/mesh/closed_surfaces.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 #include "tests/test_data.hpp"
 
 #include <tbb/global_control.h>
@@ -450,7 +451,7 @@ TEST_CASE("self_intersections: the same pairs and the same first pair on any thr
   std::vector<TrianglePair> pairs[2];
   std::optional<TrianglePair> first[2];
   for (int threads : {1, 2}) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     pairs[threads - 1] = self_intersections(a.positions, a.triangles);
     first[threads - 1] = first_self_intersection(a.positions, a.triangles);
   }

@@ -2,13 +2,18 @@
 // conservation, a hanging column against the analytic sag, the bouncing cube's energy under
 // Newmark and implicit Euler, FEM and MPM landing together, the plane conditions, thread count.
 #include "engine/mpm/mpm_simulation.hpp"
+#include "engine/mpm/mpm_step.hpp"
+#include "engine/mpm/transfer.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -223,13 +228,35 @@ TEST_CASE("mpm plane conditions: separating and slip let a block slide, sticky h
 }
 
 TEST_CASE("mpm steps are the same on 1 and 2 threads") {
-  const std::string extra = R"(, "contact": {"friction": 0.3}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0.2]}}])";
-  const Scene scene = test::scene_from_json(
-      block_scene("generalized_alpha", 0.005, 12, "[0, -9.81, 0]", "[0, 0.1, 0]", "[0.3, -1, 0]", extra), "mpm_threads");
+  // A plate of 36 x 2 x 36 cells, one particle per cell: 9 blocks of 4^3 cells a side, so every
+  // colour has many blocks to share out, and over 5,000 active nodes, so the Newton system's sums
+  // are cut into chunks too (a small cube would run every loop in one piece).
+  const Scene scene = test::scene_from_json(R"({"gravity": [0, -9.81, 0],
+    "time": {"dt": 0.005, "steps": 8, "integrator": "generalized_alpha"},
+    "mpm": {"grid_spacing": 0.025, "domain_min": [-0.6, -0.1, -0.6], "domain_max": [0.6, 0.3, 0.6]},
+    "materials": {"m": {"model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000}},
+    "bodies": [{"particles": {"box": {"size": [0.9, 0.05, 0.9], "per_cell": 1}}, "material": "m",
+                "translate": [0, 0.1, 0], "velocity": [0.3, -1, 0]}],
+    "contact": {"friction": 0.3},
+    "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0.2]}}]})",
+                                            "mpm_threads");
+  {
+    const MpmModel& m = *scene.mpm;
+    Grid grid = make_grid(m.grid_spacing, m.domain_min, m.domain_max);
+    ParticleBins bins;
+    REQUIRE(bin_particles(grid, m.initial, bins) == 0);
+    size_t fewest = SIZE_MAX;
+    for (const auto& blocks : bins.colour_blocks) fewest = std::min(fewest, blocks.size());
+    CHECK(fewest > 1);
+    particles_to_grid(m.initial, bins, grid);
+    const int64_t active = std::count_if(grid.mass.begin(), grid.mass.end(), [](double mass) { return mass > 0.0; });
+    MESSAGE(m.initial.size() << " particles, " << active << " active nodes, at least " << fewest << " blocks per colour");
+    CHECK(3 * active > 2 * kMpmNodeGrain);
+  }
   auto final_state = [&](int threads) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     MpmSimulation simulation(scene);
-    run(simulation, 12);
+    run(simulation, 8);
     const Particles& p = simulation.state().particles;
     std::vector<double> all = p.x;
     all.insert(all.end(), p.v.begin(), p.v.end());

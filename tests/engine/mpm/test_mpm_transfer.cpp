@@ -7,6 +7,7 @@
 #include "engine/mpm/particles.hpp"
 #include "engine/mpm/transfer.hpp"
 #include "tests/engine/mpm/mpm_test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -203,7 +204,7 @@ TEST_CASE("mpm transfers and elastic derivatives are bitwise equal on 1 and 2 th
   const std::vector<Material> materials{test::test_material(MaterialModel::neohookean),
                                         test::test_material(MaterialModel::corotated, 3e5, 0.4)};
   auto run = [&](int threads) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     Grid grid = make_grid(0.04, Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones());
     Particles particles = test::random_particles(20000, 0.1, 0.9, 2.0, 41);
     test::perturb_deformation(particles, 1.0, 0.05, 43);

@@ -201,6 +201,59 @@ TEST_CASE("nexdyn plot: the default size is 1200x800, and a scene without contac
   fs::remove_all(out);
 }
 
+TEST_CASE("nexdyn plot: a changed column changes exactly the charts that draw it") {
+  // One value of one column changed at a time: the charts that draw that column must come out
+  // different, every other chart the same bytes (gnuplot's PNGs hold no date). So each chart
+  // reads the columns it names, and only those.
+  // One folder throughout: the charts' titles name it.
+  const std::string stats = stats_csv(12), timings = timings_csv(12);
+  const fs::path dir = test::temp_dir("plot_columns");
+  const auto pictures = [&](const std::string& stats_text, const std::string& timings_text) {
+    test::write_text(dir / "stats.csv", stats_text);
+    test::write_text(dir / "timings.csv", timings_text);
+    REQUIRE(run_nexdyn("plot " + dir.string() + " --size 400x300").exit_code == 0);
+    std::vector<std::string> bytes;
+    for (const std::string& png : kPngs) {
+      std::ifstream in(dir / "plots" / png, std::ios::binary);
+      bytes.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    return bytes;
+  };
+  const std::vector<std::string> base = pictures(stats, timings);
+  CHECK(base == pictures(stats, timings));
+  struct Change {
+    const char* file;
+    int field;  // 0-based, in the engine's header order
+    const char* value;
+    std::vector<std::string> charts;
+  };
+  const std::vector<Change> changes = {
+      {"stats.csv", 2, "1.3", {"energies.png"}},               // kinetic_energy
+      {"stats.csv", 8, "0.4", {"momentum.png"}},               // momentum_y
+      {"stats.csv", 10, "9", {"newton.png"}},                  // newton_iterations
+      {"stats.csv", 11, "7", {"contacts.png"}},                // contacts
+      {"stats.csv", 12, "0.0005", {"contacts.png"}},           // min_distance
+      {"stats.csv", 16, "0.02", {"energy_balance.png"}},       // friction_dissipated
+      {"stats.csv", 6, "0.5", {"energies.png", "energy_balance.png"}},  // total_energy
+      {"stats.csv", 13, "0.5", {}},                            // wall_seconds: drawn from timings.csv
+      {"timings.csv", 8, "9", {"timings.png"}},                // solve_ms
+  };
+  for (const Change& c : changes) {
+    const std::string file = c.file;
+    CAPTURE(file);
+    CAPTURE(c.field);
+    const bool in_stats = std::string(c.file) == "stats.csv";
+    const std::vector<std::string> changed = pictures(in_stats ? with_field(stats, 6, c.field, c.value) : stats,
+                                                      in_stats ? timings : with_field(timings, 6, c.field, c.value));
+    for (size_t k = 0; k < kPngs.size(); ++k) {
+      CAPTURE(kPngs[k]);
+      const bool draws = std::find(c.charts.begin(), c.charts.end(), kPngs[k]) != c.charts.end();
+      CHECK((changed[k] != base[k]) == draws);
+    }
+  }
+  fs::remove_all(dir);
+}
+
 TEST_CASE("nexdyn plot: a bad stats.csv or timings.csv is one line on stderr and no PNG") {
   const std::string good = stats_csv(6);
   struct Case {

@@ -6,6 +6,7 @@
 #include "engine/render/png_file.hpp"
 #include "engine/render/render_command.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <tbb/global_control.h>
 
@@ -135,11 +136,11 @@ TEST_CASE("render: pictures are the same bytes on 1 and 2 threads") {
   for (const ColorBy color : {ColorBy::body, ColorBy::value}) {
     Image one, two;
     {
-      tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+      test::ThreadsScope threads(1);
       one = render_image(in, camera, 320, 240, color);
     }
     {
-      tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+      test::ThreadsScope threads(2);
       two = render_image(in, camera, 320, 240, color);
     }
     CHECK(one.rgb == two.rgb);
@@ -218,9 +219,9 @@ std::filesystem::path cube_drop_run(const std::string& tag) {
 
 TEST_CASE("render CLI: the last frame by default, the same bytes on 1 and 2 threads") {
   const auto dir = cube_drop_run("render_cli");
-  const auto one = test::run_cli("render " + dir.string() + " --size 320x200 --threads 1 --out " + (dir / "one").string());
+  const auto one = test::run_cli_on_threads("render " + dir.string() + " --size 320x200 --out " + (dir / "one").string(), 1);
   REQUIRE(one.exit_code == 0);
-  const auto two = test::run_cli("render " + dir.string() + " --size 320x200 --threads 2 --out " + (dir / "two").string());
+  const auto two = test::run_cli_on_threads("render " + dir.string() + " --size 320x200 --out " + (dir / "two").string(), 2);
   REQUIRE(two.exit_code == 0);
   const std::vector<FrameEntry> frames = read_frame_list(dir);
   char name[32];
@@ -237,6 +238,59 @@ TEST_CASE("render CLI: the last frame by default, the same bytes on 1 and 2 thre
   size_t pictures = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir / "all")) pictures += entry.path().extension() == ".png";
   CHECK(pictures == frames.size());
+}
+
+TEST_CASE("render CLI: --color speed paints the moving body red and the one at rest dark blue") {
+  // No gravity: body 0 (orange in --color body) rests at x = +0.3, body 1 (blue) moves at 3 m/s
+  // along z at x = -0.3. Seen along -z, the moving one is on the left. By speed, the fastest
+  // vertex is the colour map's top (red, 0.85 0.22 0.15) and a vertex at rest its bottom (dark
+  // blue, 0.16 0.18 0.50); shading scales a pixel's three channels alike, so the ratio of red to
+  // blue over a body's pixels tells the two apart. Both are the opposite of the bodies' own
+  // colours, so a speed picture drawn in body colours fails too.
+  const auto dir = test::temp_dir("render_speed");
+  const auto scene = test::write_text(dir / "two.json", R"({
+    "time": { "dt": 0.01, "steps": 1 },
+    "materials": { "m": { "model": "neohookean", "youngs": 1e6, "poisson": 0.3, "density": 1000 } },
+    "bodies": [
+      { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "m", "translate": [0.3, 0, 0] },
+      { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "m", "translate": [-0.3, 0, 0],
+        "velocity": [0, 0, 3] } ],
+    "output": { "every": 1 } })");
+  REQUIRE(test::run_cli("run " + scene.string() + " --quiet --out " + (dir / "run").string()).exit_code == 0);
+  const std::string camera = " --frame 1 --size 320x240 --camera 0,0,2,0,0,0,40 --out ";
+  for (const std::string color : {"speed", "body"}) {
+    CAPTURE(color);
+    const std::filesystem::path out = dir / color;
+    REQUIRE(test::run_cli("render " + (dir / "run").string() + camera + out.string() + " --color " + color).exit_code == 0);
+    const Image picture = read_png(out / "frame_000001.png");
+    // Rows just above the horizon hold the two bodies and the sky only (the ground grid lies below
+    // the bodies); the sky's colour depends on the row alone, so a pixel that differs from its
+    // row's first pixel is a body's.
+    double red[2] = {0, 0}, blue[2] = {0, 0};
+    int64_t pixels[2] = {0, 0};
+    for (int j = picture.height / 2 - picture.height / 20; j < picture.height / 2; ++j) {
+      const uint8_t* row = &picture.rgb[3 * size_t(j) * size_t(picture.width)];
+      for (int i = 0; i < picture.width; ++i) {
+        const uint8_t* p = row + 3 * i;
+        if (p[0] == row[0] && p[1] == row[1] && p[2] == row[2]) continue;
+        const int side = i < picture.width / 2 ? 0 : 1;  // 0: the moving body, 1: the one at rest
+        red[side] += p[0];
+        blue[side] += p[2];
+        ++pixels[side];
+      }
+    }
+    MESSAGE(color << ": moving body " << pixels[0] << " pixels, red / blue " << red[0] / blue[0] << "; body at rest "
+                  << pixels[1] << " pixels, red / blue " << red[1] / blue[1]);
+    REQUIRE(pixels[0] > 200);
+    REQUIRE(pixels[1] > 200);
+    if (color == "speed") {
+      CHECK(red[0] > 3.0 * blue[0]);  // 0.85 / 0.15 at the top of the map
+      CHECK(blue[1] > 2.0 * red[1]);  // 0.50 / 0.16 at the bottom
+    } else {
+      CHECK(blue[0] > red[0]);  // body 1 is blue, body 0 orange: the other way round
+      CHECK(red[1] > blue[1]);
+    }
+  }
 }
 
 TEST_CASE("render CLI: bad input is one line and writes nothing") {

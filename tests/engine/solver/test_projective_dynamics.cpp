@@ -10,6 +10,7 @@
 #include "engine/step_history.hpp"
 #include "tests/engine/cantilever_support.hpp"
 #include "tests/engine/test_support.hpp"
+#include "tests/threads_support.hpp"
 
 #include <doctest/doctest.h>
 #include <tbb/global_control.h>
@@ -203,12 +204,12 @@ TEST_CASE("projective dynamics: plain PD descends the energy to a fixed point wi
 namespace {
 
 // A 0.2 m rubber cube whose bottom face starts 1 mm above the plane y = 0.
-std::string block_json() {
+std::string block_json(const std::string& cells = "4, 4, 4") {
   return R"({
     "gravity": [0, -9.81, 0],
     "time": { "dt": 0.01, "integrator": "implicit_euler" },
     "materials": { "rubber": { "model": "corotated", "youngs": 1e6, "poisson": 0, "density": 1000 } },
-    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [4, 4, 4] }, "material": "rubber",
+    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [)" + cells + R"(] }, "material": "rubber",
                   "translate": [0, 0.101, 0] } ],
     "obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ],
     "contact": {}
@@ -243,12 +244,18 @@ TEST_CASE("projective dynamics: a block falls onto an obstacle plane and rests o
 
 TEST_CASE("projective dynamics: results are bitwise identical on 1 and 2 threads") {
   const Scene cantilever = test::scene_from_json(cantilever_json(0.01, "implicit_euler", "40, 4, 4", 100.0), "pd_threads");
-  const Scene block = test::scene_from_json(block_json(), "pd_threads_block");
+  // A block of 1,331 vertices and 6,000 tets: both kinds of PD loop are cut into several chunks
+  // (the 4^3-cell block of the plane test would run each in one).
+  const Scene block = test::scene_from_json(block_json("10, 10, 10"), "pd_threads_block");
+  for (const Scene* scene : {&cantilever, &block}) {
+    CHECK(scene->model.num_tets > kPdTetGrain);
+    CHECK(scene->model.num_vertices > kPdVertexGrain);
+  }
   std::vector<double> x[2], y[2];
   double rho[2];
   int iterations[2];
   for (int threads : {1, 2}) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    test::ThreadsScope limit(threads);
     PdRun bar(cantilever);
     for (int i = 0; i < 3; ++i) REQUIRE(bar.step().converged());
     x[threads - 1] = bar.x;
