@@ -43,7 +43,8 @@ void std_thread_chunks(int64_t num_chunks, Chunk&& chunk) {
 #endif
 
 // How many loops were cut into more than one chunk since the process started (parallel_for,
-// for_each_chunk, deterministic_sum and grouped_sum with more than one chunk, and run_both).
+// for_each_chunk, deterministic_sum and grouped_sum with more than one chunk; not run_both, whose
+// two sides may be empty).
 // A test that compares 1 and 2 threads asserts it grew during its run: a loop of one chunk runs
 // on the calling thread alone, and then "the same on 1 and 2 threads" says nothing.
 inline std::atomic<int64_t>& split_loop_count() {
@@ -135,7 +136,6 @@ void grouped_sum(int64_t n, int64_t grain, GroupOf&& group_of, Run&& run, double
 // Runs a() and b() at the same time (each may use parallel_for itself).
 template <typename A, typename B>
 void run_both(A&& a, B&& b) {
-  split_loop_count().fetch_add(1, std::memory_order_relaxed);
 #if NEXDYN_PARALLEL_STD_THREADS
   std::thread other(b);
   a();

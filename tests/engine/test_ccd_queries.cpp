@@ -42,7 +42,8 @@ TEST_CASE("ccd: zero false negatives, and false positives pinned at the engine's
     int64_t queries, positives, false_positives;
   };
   for (const Expected& e : {Expected{"vertex-face.txt", 1109, 83, 19}, Expected{"edge-edge.txt", 1486, 62, 23}}) {
-    CAPTURE(e.file);
+    const std::string file = e.file;
+    CAPTURE(file);
     const CcdQuerySet set = read_ccd_queries(shipped(e.file));
     const CcdQueryStats stats = run_ccd_queries(set);
     CHECK(stats.queries == set.size());
