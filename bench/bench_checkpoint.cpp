@@ -5,6 +5,7 @@
 //
 //   ./build/bench/bench_checkpoint
 #include "engine/output/checkpoint_file.hpp"
+#include "engine/output/step_checkpoint.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/simulation.hpp"
 
@@ -32,7 +33,7 @@ void BM_SaveState(benchmark::State& state) {
   size_t bytes = 0;
   for (auto _ : state) {
     CheckpointWriter out;
-    simulation.save(out);
+    save_simulation(out, simulation);
     bytes = out.bytes().size();
     benchmark::DoNotOptimize(out.bytes().data());
   }
@@ -43,10 +44,10 @@ BENCHMARK(BM_SaveState)->Unit(benchmark::kMillisecond);
 void BM_RestoreState(benchmark::State& state) {
   Simulation& simulation = landed_pile();
   CheckpointWriter out;
-  simulation.save(out);
+  save_simulation(out, simulation);
   for (auto _ : state) {
     CheckpointReader in(out.bytes(), "bench");
-    simulation.restore(in);
+    restore_simulation(in, simulation);
   }
 }
 BENCHMARK(BM_RestoreState)->Unit(benchmark::kMillisecond);
@@ -54,7 +55,7 @@ BENCHMARK(BM_RestoreState)->Unit(benchmark::kMillisecond);
 void BM_WriteCheckpointFile(benchmark::State& state) {
   Simulation& simulation = landed_pile();
   CheckpointWriter out;
-  simulation.save(out);
+  save_simulation(out, simulation);
   const std::filesystem::path file = std::filesystem::temp_directory_path() / "nexdyn_bench.ckpt";
   for (auto _ : state) write_checkpoint_file(file, out.bytes());
   std::filesystem::remove(file);

@@ -28,10 +28,10 @@
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/friction_potential.hpp"
 #include "engine/contact/candidates.hpp"
-#include "engine/contact/intersection.hpp"
-#include "engine/elastic_assembly.hpp"
+#include "engine/mesh/intersection.hpp"
+#include "engine/potential/elastic_assembly.hpp"
 #include "engine/scene/scene.hpp"
-#include "engine/solver/contact_pattern.hpp"
+#include "engine/sparse/contact_pattern.hpp"
 #include "kernels/isa.hpp"
 
 #include <benchmark/benchmark.h>

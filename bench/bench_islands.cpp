@@ -1,15 +1,15 @@
 // Factorising one island of the stress piles three ways, to choose IslandSystem's thresholds
-// (engine/solver/island_system.hpp): Eigen's dense LLT, CHOLMOD simplicial and CHOLMOD
+// (engine/sparse/island_system.hpp): Eigen's dense LLT, CHOLMOD simplicial and CHOLMOD
 // supernodal, each on the Newton matrix of one body (mass plus the projected elastic Hessian of
 // a slightly squashed body, implicit Euler at dt = 0.01). Bodies: the 2 x 2 x 2-cell box of the
 // piles (81 DOFs), the IPC torus (600 DOFs) and boxes of 4^3 and 8^3 cells (375 and 2,187 DOFs).
 // Single-threaded: islands are factorised one per thread.
 //
 //   ./build/bench/bench_islands
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/scene/scene.hpp"
-#include "engine/solver/cholmod_solver.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
 
 #include <Eigen/Cholesky>
 #include <benchmark/benchmark.h>

@@ -10,7 +10,7 @@
 // factorisation: dofs, factor non-zeros and flops (CHOLMOD's analysis).
 #include "engine/mpm/grid_elasticity.hpp"
 #include "engine/mpm/mpm_step.hpp"
-#include "engine/solver/cholmod_solver.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
 #include "bench/mpm_bench_scene.hpp"
 
 #include <benchmark/benchmark.h>

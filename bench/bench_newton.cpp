@@ -7,10 +7,10 @@
 // (VmHWM of the process after setting up the largest problem, divided by its tets).
 //
 //   ./build/bench/bench_newton --benchmark_min_time=1
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/scene/scene.hpp"
-#include "engine/solver/cholmod_solver.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
 
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>

@@ -61,7 +61,7 @@ struct IntegratorParams {
     return is_static ? 1.0 : 2.0 * alpha * beta * dt * dt * c_a();
   }
   // The weight of joint forces in E(x): the one that makes the velocity update add exactly
-  // h M^-1 f for such a force f (engine/incremental_potential.hpp), relative to s.
+  // h M^-1 f for such a force f (engine/potential/incremental_potential.hpp), relative to s.
   double joint_weight() const { return is_static ? 1.0 : 1.0 / (gamma * c_a()); }
 
   // Contact and friction forces act as one impulse at the end of the step: the velocity gains

@@ -11,6 +11,7 @@
 #include "kernels/elasticity/material.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <string>
@@ -72,7 +73,7 @@ struct MaterialBatch {
 //
 // Kinematic motions (moving ones in a scene with contact) drive vertices that must push bodies
 // out of their way: those vertices stay unknowns of the step, pulled to their targets by an
-// augmented Lagrangian (engine/kinematic_targets.hpp) so that CCD sweeps their motion like any
+// augmented Lagrangian (engine/potential/kinematic_targets.hpp) so that CCD sweeps their motion like any
 // other. Other held vertices are eliminated from the Newton system.
 struct DirichletMotion {
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // [m/s]
@@ -82,6 +83,20 @@ struct DirichletMotion {
   bool kinematic = false;                              // see above
 
   bool moves() const { return velocity != Eigen::Vector3d::Zero() || angular_velocity != 0.0; }
+
+  // The point that started at p0, at time t: its position, velocity and acceleration.
+  struct Point {
+    Eigen::Vector3d x, v, a;
+  };
+  Point at(const Eigen::Vector3d& p0, double t) const {
+    const Eigen::Vector3d r = Eigen::AngleAxisd(angular_velocity * t, axis) * (p0 - center);
+    const Eigen::Vector3d w = angular_velocity * axis;
+    return {center + velocity * t + r, velocity + w.cross(r), w.cross(w.cross(r))};
+  }
+  // The start point p0 that the motion carries to x at time t (at() inverted).
+  Eigen::Vector3d origin(const Eigen::Vector3d& x, double t) const {
+    return center + Eigen::AngleAxisd(-angular_velocity * t, axis) * (x - center - velocity * t);
+  }
 };
 
 // A joint (DESIGN.md section 5, "joints"; issue 4). Its constraint is linear in the positions:

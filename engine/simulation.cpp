@@ -1,8 +1,8 @@
 // The stages of a time step, in the order Simulation::attempt runs them (see simulation.hpp).
 #include "engine/simulation.hpp"
 
-#include "engine/output/step_checkpoint.hpp"
 #include "engine/parallel.hpp"
+#include "engine/step_retry.hpp"
 
 #include <Eigen/Geometry>
 #include <Eigen/QR>
@@ -55,7 +55,7 @@ Simulation::Simulation(const Scene& scene)
       elastic_(scene.model, joints_.coupling_groups()), contact_(make_contact(scene)),
       friction_(make_friction(scene)), kinematic_(scene.model, history_),
       potential_(scene.model, elastic_, history_, contact_.get(), joints_.empty() ? nullptr : &joints_) {
-  // The potential's terms, in order (engine/incremental_potential.hpp): inertia and gravity,
+  // The potential's terms, in order (engine/potential/incremental_potential.hpp): inertia and gravity,
   // elasticity, joints and the barrier (the constructor), then friction and the kinematic targets.
   potential_.set_friction(friction_.get());
   if (friction_) potential_.friction()->set_velocity_tolerance(scene.solver.tolerance);
@@ -111,16 +111,18 @@ Simulation::Simulation(const Scene& scene)
 
 StepOutcome Simulation::step() {
   const auto start = std::chrono::steady_clock::now();
-  int iterations = 0, retries = 0;
+  int retries = 0;
   const double t_next = state_.time + scene_.time.dt;
+  step_iterations_ = 0;
   balance_ = {};
   stats_.guarded_steps = 0;
   energy_now_ = history_.energy_before;
   if (sleeping_) sleeping_->wake_near_motion(state_, scene_.time.dt);
-  StepOutcome outcome = advance_or_split(scene_.time.dt, t_next, 0, iterations, retries);
+  StepOutcome outcome =
+      advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
   stats_.retries = retries;
   if (outcome.status != StepStatus::ok) return outcome;
-  state_.time = t_next;
+  const int iterations = step_iterations_;
   ++state_.step;
 
   stats_.step = state_.step;
@@ -146,53 +148,31 @@ StepOutcome Simulation::step() {
   return outcome;
 }
 
-StepOutcome Simulation::advance_or_split(double dt, double t_next, int level, int& iterations, int& retries) {
-  const int halvings = scene_.solver.substep_halvings;
-  // What to go back to if this attempt fails: the State and the StepHistory, nothing else.
-  const State state_before = state_;
-  const StepHistory history_before = history_;
-  const EnergyBalance balance_before = balance_;
-  const double energy_start = energy_now_;
-  auto go_back = [&] {
-    state_ = state_before;
-    history_ = history_before;
-    drop_caches();
-    balance_ = balance_before;
-    energy_now_ = energy_start;
-  };
-  const double t_start = state_.time;
-  StepOutcome outcome = attempt(dt, t_next, level, iterations);
-  if (outcome.status == StepStatus::ok && guard_energy(balance_before)) {
+// ---- the retry by halving (engine/step_retry.hpp) --------------------------------------------
+
+Simulation::Snapshot Simulation::snapshot() const { return {state_, history_, balance_, energy_now_}; }
+
+void Simulation::go_back(const Snapshot& before) {
+  state_ = before.state;
+  history_ = before.history;
+  drop_caches();
+  balance_ = before.balance;
+  energy_now_ = before.energy_now;
+}
+
+StepOutcome Simulation::attempt(double /*t_start*/, double t_end, double dt, int level, const Snapshot& before) {
+  StepOutcome outcome = attempt(dt, t_end, level, step_iterations_);
+  if (outcome.status == StepStatus::ok && guard_energy(before.balance)) {
     // The integration would have created energy: the same interval again with implicit Euler.
-    go_back();
+    go_back(before);
     force_euler_ = true;
-    outcome = attempt(dt, t_next, level, iterations);
+    outcome = attempt(dt, t_end, level, step_iterations_);
     force_euler_ = false;
     if (outcome.status == StepStatus::ok) {
       ++stats_.guarded_steps;
-      guard_energy(balance_before);
+      guard_energy(before.balance);
     }
   }
-  if (outcome.status == StepStatus::ok) return outcome;
-  go_back();
-  if (level == halvings) {
-    if (halvings == 0) return outcome;
-    char where[160];
-    std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
-                  halvings, halvings == 1 ? "" : "s", dt, t_start);
-    outcome.message += where;
-    return outcome;
-  }
-  // Two steps of half the size; each may split again. If either fails for good, the state goes
-  // back to where this interval started.
-  ++retries;
-  const double t_mid = t_start + 0.5 * (t_next - t_start);
-  outcome = advance_or_split(t_mid - t_start, t_mid, level + 1, iterations, retries);
-  if (outcome.status == StepStatus::ok) {
-    state_.time = t_mid;
-    outcome = advance_or_split(t_next - t_mid, t_next, level + 1, iterations, retries);
-  }
-  if (outcome.status != StepStatus::ok) go_back();
   return outcome;
 }
 
@@ -262,7 +242,7 @@ void Simulation::update_after_solve(const StepContext& ctx) {
   }
   update_implicit(scheme, ctx.dt, x_next_, state_.x_tilde, state_.v, state_.a, state_.a_bar);
   // Joint forces act as one impulse at the end of the step: out of the acceleration carried to
-  // the next step (engine/incremental_potential.hpp).
+  // the next step (engine/potential/incremental_potential.hpp).
   potential_.impulsive_forces(x_next_.data(), impulse_);
   remove_impulse(scheme, impulse_, state_.a, state_.a_bar);
 }
@@ -345,13 +325,11 @@ void Simulation::prescribe(double t, std::vector<double>& x, std::vector<double>
     if (id < 0) continue;
     const DirichletMotion& m = model_.dirichlet_motions[id];
     if (m.kinematic && !kinematic) continue;
-    const Eigen::Vector3d p0 = Eigen::Vector3d::Map(&model_.rest_positions[3 * i]);
-    const Eigen::Vector3d w = m.angular_velocity * m.axis;
-    const Eigen::Vector3d r = Eigen::AngleAxisd(m.angular_velocity * t, m.axis) * (p0 - m.center);
-    Eigen::Vector3d::Map(&x[3 * i]) = m.center + m.velocity * t + r;
-    if (v) Eigen::Vector3d::Map(&(*v)[3 * i]) = m.velocity + w.cross(r);
-    if (a) Eigen::Vector3d::Map(&(*a)[3 * i]) = w.cross(w.cross(r));
-    if (a_bar) Eigen::Vector3d::Map(&(*a_bar)[3 * i]) = w.cross(w.cross(r));
+    const DirichletMotion::Point p = m.at(Eigen::Vector3d::Map(&model_.rest_positions[3 * i]), t);
+    Eigen::Vector3d::Map(&x[3 * i]) = p.x;
+    if (v) Eigen::Vector3d::Map(&(*v)[3 * i]) = p.v;
+    if (a) Eigen::Vector3d::Map(&(*a)[3 * i]) = p.a;
+    if (a_bar) Eigen::Vector3d::Map(&(*a_bar)[3 * i]) = p.a;
   }
 }
 
@@ -404,13 +382,9 @@ void Simulation::constrain_initial_acceleration() {
 
 // ---- checkpoints ----------------------------------------------------------------------------
 
-void Simulation::save(CheckpointWriter& out) const { write_step_checkpoint(out, state_, history_); }
-
-void Simulation::restore(CheckpointReader& in) {
-  const StepCheckpointShape shape{model_.num_dofs(), model_.num_vertices, joints_.size(),
-                                  static_cast<int64_t>(kinematic_.vertices().size()), contact_ != nullptr,
-                                  static_cast<int32_t>(model_.bodies.size())};
-  read_step_checkpoint(in, shape, state_, history_);
+void Simulation::adopt(const State& state, const StepHistory& history) {
+  state_ = state;
+  history_ = history;
   if (sleeping_) sleeping_->adopt(state_);
   else history_.rest_steps.clear(), history_.sleep_group.clear(), history_.rest_anchor.clear();
   drop_caches();

@@ -17,25 +17,25 @@
 //   finish              x_{n+1} into the State, held vertices onto their paths
 //
 // A failed attempt (Newton, factorisation, NaN) is rolled back, a copy of State and StepHistory,
-// and the interval is attempted as two halves, recursively (advance_or_split). After the step:
+// and the interval is attempted as two halves, recursively (engine/step_retry.hpp). After the step:
 //   measure             energies, momentum, contact summary for stats.csv; the energy balance's
 //                       unexplained rest is the integrator's energy (simulation_energy.cpp)
 //
 // The Model stays const; the scene must outlive the simulation.
 #pragma once
 
-#include "engine/elastic_assembly.hpp"
+#include "engine/potential/elastic_assembly.hpp"
 #include "engine/energy_balance.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/solver/linearized_step.hpp"
 #include "engine/solver/projective_dynamics.hpp"
 #include "engine/terms/damping_term.hpp"
-#include "engine/kinematic_targets.hpp"
+#include "engine/potential/kinematic_targets.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/sleeping.hpp"
 #include "engine/solver/newton.hpp"
-#include "engine/solver/step_status.hpp"
 #include "engine/state.hpp"
+#include "engine/step_result.hpp"
 #include "engine/step_context.hpp"
 #include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
@@ -48,38 +48,8 @@
 
 namespace nexdyn {
 
-class CheckpointWriter;
-class CheckpointReader;
-
 // dhat [m] of a scene: contact.dhat, or 1e-3 of the bodies' bounding-box diagonal when absent.
 double resolved_dhat(const Scene& scene);
-
-// One row of stats.csv (DESIGN.md section 6).
-struct StepStats {
-  int64_t step = 0;
-  double time = 0.0;
-  double kinetic_energy = 0.0;
-  double elastic_energy = 0.0;
-  double gravity_energy = 0.0;  // -sum m g . x
-  double barrier_energy = 0.0;
-  double total_energy = 0.0;
-  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
-  int newton_iterations = 0;
-  int64_t contacts = 0;
-  double min_distance = 0.0;
-  double wall_seconds = 0.0;
-  std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
-  int retries = 0;  // failed attempts of this step, each retried as two of half the dt
-  EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
-  int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
-  int32_t sleeping_bodies = 0;  // bodies asleep at the end of the step (engine/sleeping.hpp)
-  double damping_dissipated = 0.0;  // [J] taken out by Rayleigh damping since the start
-};
-
-struct StepOutcome {
-  StepStatus status = StepStatus::ok;
-  std::string message;  // empty when ok
-};
 
 class Simulation {
  public:
@@ -92,6 +62,7 @@ class Simulation {
   // and is retried as two steps of half the dt, recursively, solver.substep_halvings deep at
   // most; the next step tries the full dt again. On failure the state is the one before the step.
   StepOutcome step();
+  const Model& model() const { return model_; }
   const State& state() const { return state_; }
   const StepHistory& history() const { return history_; }
   const StepStats& last_stats() const { return stats_; }
@@ -105,20 +76,34 @@ class Simulation {
   // The largest memory the Newton solver's Cholesky factors held at once [bytes] (0: none).
   double peak_factor_bytes() const { return newton_ ? newton_->peak_factor_bytes() : 0.0; }
 
-  // Everything the next steps depend on: the State and the StepHistory
-  // (engine/output/step_checkpoint.hpp). A simulation of the same scene restored from it takes
-  // the same steps bit for bit.
-  void save(CheckpointWriter& out) const;
-  // CheckpointError naming the fault when the data does not fit this scene.
-  void restore(CheckpointReader& in);
+  // Everything the next steps depend on is state() and history(): a simulation of the same
+  // scene that adopts them takes the same steps bit for bit (checkpoints:
+  // engine/output/step_checkpoint.hpp, which checks them against the scene first).
+  void adopt(const State& state, const StepHistory& history);
+  int64_t num_joints() const { return joints_.size(); }
+  bool has_contact() const { return contact_ != nullptr; }
 
   // Test seam: attempts at `level` (0: the scene's dt, k: its k-th halving) fail before they
   // start, as a failed solve would, so a test can compare a rolled-back step with halves.
   void fail_attempts_at_level(int level) { fail_level_ = level; }
 
  private:
+  // ---- the retry by halving (engine/step_retry.hpp drives these; simulation.cpp)
+  template <typename Stepper>
+  friend StepOutcome advance_or_split(Stepper&, double, double, double, int, int, int&);
+  // What a failed attempt puts back: the State, the StepHistory and the step's balance so far.
+  struct Snapshot {
+    State state;
+    StepHistory history;
+    EnergyBalance balance;
+    double energy_now = 0.0;
+  };
+  Snapshot snapshot() const;
+  void go_back(const Snapshot& before);
+  void set_time(double t) { state_.time = t; }
+  // One attempt of [t_start, t_end], retaken with implicit Euler when the energy guard says so.
+  StepOutcome attempt(double t_start, double t_end, double dt, int level, const Snapshot& before);
   // ---- the step (simulation.cpp)
-  StepOutcome advance_or_split(double dt, double t_next, int level, int& iterations, int& retries);
   StepOutcome attempt(double dt, double t_next, int level, int& iterations);
   // The scheme of an attempt (see the top of this file) and its context.
   StepContext choose_scheme(double dt, double t_next, int level);
@@ -226,6 +211,7 @@ class Simulation {
   double energy_now_ = 0.0;
   bool last_attempt_euler_ = false, force_euler_ = false;
   int fail_level_ = -1;  // fail_attempts_at_level
+  int step_iterations_ = 0;  // Newton iterations of the step under way, failed attempts included
 };
 
 }  // namespace nexdyn

@@ -1,7 +1,7 @@
 // Sleeping bodies (see sleeping.hpp).
 #include "engine/sleeping.hpp"
 
-#include "engine/solver/islands.hpp"
+#include "engine/sparse/islands.hpp"
 
 #include <Eigen/Core>
 

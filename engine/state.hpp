@@ -1,8 +1,12 @@
 // State: what the integrator advances, as flat buffers of the same shape as Model's positions.
 //
 // Positions are packed xyz doubles so that `x` is directly the degree-of-freedom vector that the
-// Newton solver and CHOLMOD see. Written only by the step (engine/simulation.cpp) and the
-// integrator update kernels (engine/integrator.cpp).
+// Newton solver and CHOLMOD see. Written by the integrator's update kernels (engine/integrator.cpp:
+// x_tilde by predict_x_tilde; v, a, a_bar by update_implicit and update_explicit) and by the step's
+// stages in Simulation (engine/simulation.cpp: x at finish; the impulsive forces taken back out of
+// a and a_bar in update_with_contact; the held vertices' x, v and a in prescribe); besides those,
+// only the sleeping bodies (engine/sleeping.cpp: a body put to sleep has its v set to zero) and a
+// checkpoint's restore (Simulation::adopt) touch it.
 #pragma once
 
 #include <cstdint>

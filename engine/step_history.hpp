@@ -12,9 +12,10 @@
 // KinematicTargets, IncrementalPotential, ContactPattern), so the struct must not move while they
 // live: Simulation owns it beside the State and copies into it, never replaces it.
 //
-// What is not here: the friction lag (tangent bases and normal forces of the contacts). It is
-// taken afresh at x_n at the start of every attempt and, with friction_iterations, at the
-// attempt's own solutions, so nothing of it outlives the attempt.
+// What is not here: the friction lag (tangent bases, normal forces and start positions of the
+// contacts, owned by FrictionPotential). It is taken afresh at x_n at the start of every attempt
+// and, with friction_iterations, at the attempt's own solutions, so nothing of it outlives the
+// attempt.
 #pragma once
 
 #include <cstdint>
@@ -25,7 +26,7 @@ namespace nexdyn {
 
 struct StepHistory {
   // Barrier stiffness kappa of the IPC barrier (IPC supplemental sec. 3): set at the first solve
-  // with contact, then only raised (engine/incremental_potential.cpp).
+  // with contact, then only raised (BarrierTerm, engine/terms/barrier_term.cpp).
   double kappa = 0.0;
   double kappa_max = 0.0;
   bool kappa_from_contact = false;  // kappa was balanced against a contact gradient
@@ -35,12 +36,12 @@ struct StepHistory {
   // a step has measured it.
   std::vector<double> contact_memory;
 
-  // Joints (engine/joints.hpp): lambda_j [N] (num_joints x 3), and the product of the
+  // Joints (engine/potential/joints.hpp): lambda_j [N] (num_joints x 3), and the product of the
   // stiffenings so far (a power of two: the stiffness is the same number however it is grouped).
   std::vector<double> joint_multipliers;
   double joint_stiffening = 1.0;
 
-  // Kinematic vertices (engine/kinematic_targets.hpp): lambda_i (num_kinematic x 3), a force
+  // Kinematic vertices (engine/potential/kinematic_targets.hpp): lambda_i (num_kinematic x 3), a force
   // times the potential scale s it was accumulated under, that scale, and the product of the
   // stiffenings so far.
   std::vector<double> kinematic_multipliers;
@@ -48,7 +49,7 @@ struct StepHistory {
   double kinematic_stiffening = 1.0;
 
   // The vertex pairs (J, I), I < J, that the Newton matrix's pattern holds beyond the elastic
-  // one (engine/solver/contact_pattern.hpp). They decide the factorisation's ordering and so the
+  // one (engine/sparse/contact_pattern.hpp). They decide the factorisation's ordering and so the
   // last bits of every solve. The stamp names this list; ContactPattern rebuilds its matrix
   // pattern when the stamp is not the one it built from (kContactPatternUnbuilt: never).
   std::vector<std::pair<int32_t, int32_t>> contact_pattern_pairs;
@@ -61,9 +62,10 @@ struct StepHistory {
   std::vector<int32_t> sleep_group;
   std::vector<double> rest_anchor;
 
-  // The energy accounting (engine/simulation.cpp): the total energy where the next step's
-  // balance starts [J], and the energy guard's record: the energy the integration has created
-  // so far (negative: taken out) [J] and the largest energy in motion seen [J].
+  // The energy accounting: the total energy where the next step's balance starts [J]
+  // (Simulation::step, engine/simulation.cpp), and the energy guard's record
+  // (Simulation::guard_energy, engine/simulation_energy.cpp): the energy the integration has
+  // created so far (negative: taken out) [J] and the largest energy in motion seen [J].
   double energy_before = 0.0;
   double integrator_created = 0.0;
   double energy_scale = 0.0;

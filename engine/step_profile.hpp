@@ -20,7 +20,8 @@ enum class StepPhase : uint8_t {
   ccd,            // narrow-phase CCD of the line search's step bound
   barrier,        // contact active set, derivatives and their merge into the Newton matrix
   friction,       // friction lagging (bases, normal forces) and derivatives
-  elastic,        // elastic gradient and Hessian
+  elastic,        // the terms that write the elastic pattern's values: elasticity (with the
+                  // joints' constant coupling slabs) and Rayleigh damping
   analysis,       // CHOLMOD symbolic analysis (ordering), when the matrix pattern changed
   factorization,  // CHOLMOD numeric factorisation
   solve,          // triangular solves for the Newton direction

@@ -127,7 +127,7 @@ class BarrierPotential {
   double max_step(const double* x, const double* p);
 
   // max_step in two parts, for motions made of independent groups (the islands of the Newton
-  // system, solver/islands.hpp). sweep() recomputes the candidates for x -> x + p; then
+  // system, sparse/islands.hpp). sweep() recomputes the candidates for x -> x + p; then
   // group_max_steps() lowers alpha[g] to the largest collision-free fraction of group g's own
   // motion. group_of_vertex[v] is v's group (-1: v does not move), and every candidate pair's
   // moving vertices must share a group (join the groups over candidates() first). With a null

@@ -59,13 +59,13 @@ void FrictionPotential::clear() {
   normal_force_.clear();
   vertices_.clear();
   stencils_.clear();
+  start_.clear();
   slab_begin_.assign(1, 0);
   total_normal_force_ = 0.0;
 }
 
 void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, double kappa,
                             const double* x_start, double dt) {
-  x_start_ = x_start;
   eps_u_ = epsv_ * dt;
   previous_.basis.swap(basis_);
   previous_.mu.swap(mu_);
@@ -82,6 +82,7 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
   normal_force_.resize(num);
   vertices_.assign(4 * num, -1);
   stencils_.assign(4 * num, -1);
+  start_.assign(12 * num, 0.0);
   keys_.resize(5 * num);
   slab_begin_.resize(num + 1);
   slab_begin_[0] = 0;
@@ -136,6 +137,7 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
       const int points = kinds[k] == StencilKind::vertex_plane ? 1 : n;
       for (int i = 0; i < points; ++i) {
         vertices_[4 * k + i] = v[i];
+        Eigen::Vector3d::Map(&start_[12 * k + 3 * i]) = point(x_start, v[i]);
         stencils_[4 * k + i] = model_.eliminated(v[i]) ? -1 : v[i];
       }
       slab_begin_[k + 1] = 9 * points * points;
@@ -198,7 +200,7 @@ Vector12d FrictionPotential::displacement(const double* x, int64_t k) const {
   Vector12d dx = Vector12d::Zero();
   for (int i = 0; i < 4; ++i) {
     const int32_t v = vertices_[4 * k + i];
-    if (v >= 0) dx.segment<3>(3 * i) = point(x, v) - point(x_start_, v);
+    if (v >= 0) dx.segment<3>(3 * i) = point(x, v) - Eigen::Vector3d::Map(&start_[12 * k + 3 * i]);
   }
   return dx;
 }

@@ -51,7 +51,8 @@ class FrictionPotential {
 
   // Bases and normal forces at x_lag from barrier's active set, which must have been built at
   // x_lag (BarrierPotential::build_active_set) with barrier stiffness kappa; x_start: positions
-  // at the start of the step (kept by pointer until the next lag); dt: the time step.
+  // at the start of the step, whose stencil vertices the lag copies (the slip is measured from
+  // them until the next lag, whatever becomes of x_start); dt: the time step.
   void lag(const BarrierPotential& barrier, const double* x_lag, double kappa, const double* x_start,
            double dt);
   // No friction stencils (no contact at the lagged positions, or before the first lag).
@@ -93,11 +94,11 @@ class FrictionPotential {
   const Model& model_;
   FrictionTable table_;
   double epsv_ = 0.0, eps_u_ = 0.0;
-  const double* x_start_ = nullptr;
   double total_normal_force_ = 0.0;
   std::vector<FrictionBasis> basis_;     // (num)
   std::vector<FrictionCoefficients> mu_; // (num) of the two sides' materials
   std::vector<double> normal_force_;     // (num) lambda, multiplicity included [N]
+  std::vector<double> start_;            // (num x 12) the stencil vertices at the step's start [m]
   std::vector<int32_t> vertices_;        // (num x 4) real vertex ids, -1 past n
   std::vector<int32_t> stencils_;        // (num x 4) as vertices_, held vertices -1
   std::vector<int32_t> keys_;            // (num x 5) kind and the barrier's stencil vertices

@@ -2,7 +2,7 @@
 #include "engine/contact/start_check.hpp"
 
 #include "bvh/broad_phase.hpp"
-#include "engine/contact/intersection.hpp"
+#include "engine/mesh/intersection.hpp"
 
 #include <Eigen/Core>
 

@@ -8,7 +8,7 @@
 #include <atomic>
 
 #include "bvh/box_tree.hpp"
-#include "engine/contact/intersection.hpp"
+#include "engine/mesh/intersection.hpp"
 #include "engine/parallel.hpp"
 
 namespace nexdyn {

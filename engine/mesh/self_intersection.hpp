@@ -2,7 +2,7 @@
 // not. The last topological-geometric test before a closed surface is handed to tetrahedralisation
 // (surface_check.hpp), which needs a surface that bounds a volume without touching itself.
 //
-// Which pairs count (the exact tests of engine/contact/intersection.hpp decide each):
+// Which pairs count (the exact tests of engine/mesh/intersection.hpp decide each):
 //  - sharing no vertex id: any common point (crossing or touching);
 //  - sharing exactly one vertex id: any common point other than that vertex;
 //  - sharing an edge: never. Neighbours across an edge always meet along it, and the only way

@@ -1,18 +1,16 @@
-// MPM scenes stepped with retries, measured and checkpointed (see mpm_simulation.hpp).
+// MPM scenes stepped with retries and measured (see mpm_simulation.hpp).
 #include "engine/mpm/mpm_simulation.hpp"
 
 #include "engine/parallel.hpp"
+#include "engine/step_retry.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 namespace nexdyn {
-
-namespace {
-constexpr const char* kMpmCheckpointTag = "nexdyn mpm state 1";
-}  // namespace
 
 MpmSimulation::MpmSimulation(const Scene& scene) : scene_(scene), model_(*scene.mpm), stepper_(*scene.mpm) {
   settings_.integrator = scene.time.integrator;
@@ -27,51 +25,39 @@ MpmSimulation::MpmSimulation(const Scene& scene) : scene_(scene), model_(*scene.
 
 StepOutcome MpmSimulation::step() {
   const auto start = std::chrono::steady_clock::now();
-  int iterations = 0, retries = 0;
-  int64_t boundary_nodes = 0;
-  // On failure advance_or_split has put the state back as it was.
-  const MpmStepResult result = advance_or_split(scene_.time.dt, 0, iterations, retries, boundary_nodes);
-  if (!result.ok) return {result.status, result.message};
+  int retries = 0;
+  step_iterations_ = 0;
+  boundary_nodes_ = 0;
+  const double t_next = state_.time + scene_.time.dt;
+  const StepOutcome outcome =
+      advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
+  if (!outcome.ok()) return outcome;
   ++state_.step;
   stats_ = StepStats{};
   stats_.step = state_.step;
   stats_.time = state_.time;
-  stats_.newton_iterations = iterations;
+  stats_.newton_iterations = step_iterations_;
   stats_.retries = retries;
   {
     ProfileScope scope(&profile_, StepPhase::measure);
     measure(stats_);
   }
-  stats_.contacts = boundary_nodes;
+  stats_.contacts = boundary_nodes_;
   stats_.balance.integrator_energy = stats_.total_energy - previous_total_;
   previous_total_ = stats_.total_energy;
   stats_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return {};
+  return outcome;
 }
 
-MpmStepResult MpmSimulation::advance_or_split(double dt, int level, int& iterations, int& retries,
-                                              int64_t& boundary_nodes) {
-  const MpmState before = state_;
-  MpmStepResult result =
-      stepper_.advance(state_.particles, state_.history, state_.time, dt, settings_, &profile_);
-  iterations += result.newton_iterations;
+StepOutcome MpmSimulation::attempt(double t_start, double /*t_end*/, double dt, int level, const Snapshot& /*before*/) {
+  if (level == fail_level_) return {StepStatus::max_iterations, "failed on purpose (test seam)"};
+  const MpmStepResult result =
+      stepper_.advance(state_.particles, state_.history, t_start, dt, settings_, &profile_);
+  step_iterations_ += result.newton_iterations;
   pcg_iterations_ += result.pcg_iterations;
-  if (result.ok) {
-    state_.time += dt;
-    boundary_nodes = result.boundary_nodes;
-    return result;
-  }
-  state_ = before;
-  if (!result.retry_may_help || level >= scene_.solver.substep_halvings) return result;
-  ++retries;
-  for (int half = 0; half < 2; ++half) {
-    MpmStepResult part = advance_or_split(0.5 * dt, level + 1, iterations, retries, boundary_nodes);
-    if (!part.ok) {
-      state_ = before;
-      return part;
-    }
-  }
-  return MpmStepResult{};
+  if (!result.ok) return {result.status, result.message, result.retry_may_help};
+  boundary_nodes_ = std::max(boundary_nodes_, result.boundary_nodes);
+  return {};
 }
 
 void MpmSimulation::measure(StepStats& stats) const {
@@ -108,34 +94,9 @@ void MpmSimulation::measure(StepStats& stats) const {
       stats.min_distance = std::min(stats.min_distance, plane.signed_distance(P.position(p)));
 }
 
-void MpmSimulation::save(CheckpointWriter& out) const {
-  out.put_string(kMpmCheckpointTag);
-  out.put(state_.step);
-  out.put(state_.time);
-  out.put(previous_total_);
-  out.put_vector(state_.particles.x);
-  out.put_vector(state_.particles.v);
-  out.put_vector(state_.particles.F);
-  out.put_vector(state_.particles.C);
-  out.put_vector(state_.history.a_bar);
-}
-
-void MpmSimulation::restore(CheckpointReader& in) {
-  if (in.get_string() != kMpmCheckpointTag) in.fail("not an MPM state of this version");
-  const int64_t n = model_.initial.size();
-  MpmState s;
-  s.particles = model_.initial;
-  s.step = in.get<int64_t>();
-  s.time = in.get<double>();
-  const double total = in.get<double>();
-  s.particles.x = in.get_vector<double>(3 * n);
-  s.particles.v = in.get_vector<double>(3 * n);
-  s.particles.F = in.get_vector<double>(9 * n);
-  s.particles.C = in.get_vector<double>(9 * n);
-  s.history.a_bar = in.get_vector<double>(3 * n);
-  if (s.step < 0 || !std::isfinite(s.time)) in.fail("inconsistent MPM step and time");
-  state_ = std::move(s);
-  previous_total_ = total;
+void MpmSimulation::adopt(const MpmState& state, double previous_total) {
+  state_ = state;
+  previous_total_ = previous_total;
 }
 
 }  // namespace nexdyn

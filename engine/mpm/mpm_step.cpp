@@ -25,14 +25,6 @@ double max_abs(const std::vector<double>& a) {
   return m;
 }
 
-// The point p(0) a rigid motion carries to x at time t, and where it carries that point at t1.
-Eigen::Vector3d motion_origin(const DirichletMotion& m, const Eigen::Vector3d& x, double t) {
-  return m.center + Eigen::AngleAxisd(-m.angular_velocity * t, m.axis) * (x - m.center - m.velocity * t);
-}
-Eigen::Vector3d motion_position(const DirichletMotion& m, const Eigen::Vector3d& p0, double t) {
-  return m.center + m.velocity * t + Eigen::AngleAxisd(m.angular_velocity * t, m.axis) * (p0 - m.center);
-}
-
 }  // namespace
 
 MpmStepper::MpmStepper(const MpmModel& model)
@@ -164,15 +156,13 @@ void MpmStepper::set_boundary(double t, double dt) {
   for (size_t k = 0; k < active_.size(); ++k) {
     const Eigen::Vector3d x = grid_.node_position(int64_t{active_[k]});
     for (const MpmBox& box : model_.boxes) {
-      const Eigen::Vector3d p0 = motion_origin(box.motion, x, t);
+      const Eigen::Vector3d p0 = box.motion.origin(x, t);
       if ((p0.array() < box.box_min.array()).any() || (p0.array() > box.box_max.array()).any()) continue;
       in_box_[k] = 1;
       hold_[k] = kFull;
-      Eigen::Vector3d::Map(&target_[3 * k]) = motion_position(box.motion, p0, t + dt) - x;
-      const Eigen::Vector3d r = Eigen::AngleAxisd(box.motion.angular_velocity * (t + dt), box.motion.axis) *
-                                (p0 - box.motion.center);
-      Eigen::Vector3d::Map(&box_velocity_[3 * k]) =
-          box.motion.velocity + (box.motion.angular_velocity * box.motion.axis).cross(r);
+      const DirichletMotion::Point end = box.motion.at(p0, t + dt);
+      Eigen::Vector3d::Map(&target_[3 * k]) = end.x - x;
+      Eigen::Vector3d::Map(&box_velocity_[3 * k]) = end.v;
       break;
     }
     if (in_box_[k]) continue;

@@ -44,7 +44,7 @@
 #include "engine/mpm/mpm_model.hpp"
 #include "engine/mpm/particles.hpp"
 #include "engine/mpm/transfer.hpp"
-#include "engine/solver/step_status.hpp"
+#include "engine/step_result.hpp"
 #include "engine/step_profile.hpp"
 
 #include <cstdint>

@@ -5,6 +5,7 @@
 // half-written frame, even when the run is killed in the middle of a write.
 #pragma once
 
+#include "engine/atomic_file.hpp"
 #include "engine/model.hpp"
 #include "engine/mpm/particles.hpp"
 
@@ -15,8 +16,6 @@
 
 namespace nexdyn {
 
-// Writes `contents` to path atomically (temporary file, flush, rename). Throws on I/O error.
-void write_file_atomically(const std::filesystem::path& path, const std::string& contents);
 
 // frames/frame_NNNNNN.<ext>
 std::string frame_file_name(int64_t frame, const char* extension);

@@ -13,6 +13,8 @@ bool all_finite(const std::vector<double>& values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
 }
 
+constexpr const char* kMpmCheckpointTag = "nexdyn mpm state 1";
+
 bool finite_non_negative(double value) { return std::isfinite(value) && value >= 0.0; }
 
 void write_pairs(CheckpointWriter& out, const std::vector<std::pair<int32_t, int32_t>>& pairs) {
@@ -137,6 +139,56 @@ void read_step_checkpoint(CheckpointReader& in, const StepCheckpointShape& shape
 
   state_out = std::move(state);
   history_out = std::move(h);
+}
+
+void save_simulation(CheckpointWriter& out, const Simulation& simulation) {
+  write_step_checkpoint(out, simulation.state(), simulation.history());
+}
+
+void restore_simulation(CheckpointReader& in, Simulation& simulation) {
+  const Model& model = simulation.model();
+  const StepCheckpointShape shape{model.num_dofs(), model.num_vertices, simulation.num_joints(),
+                                  static_cast<int64_t>(simulation.kinematic().vertices().size()),
+                                  simulation.has_contact(), static_cast<int32_t>(model.bodies.size())};
+  State state;
+  StepHistory history;
+  read_step_checkpoint(in, shape, state, history);
+  simulation.adopt(state, history);
+}
+
+void save_simulation(CheckpointWriter& out, const MpmSimulation& simulation) {
+  const MpmState& s = simulation.state();
+  out.put_string(kMpmCheckpointTag);
+  out.put(s.step);
+  out.put(s.time);
+  out.put(simulation.previous_total());
+  out.put_vector(s.particles.x);
+  out.put_vector(s.particles.v);
+  out.put_vector(s.particles.F);
+  out.put_vector(s.particles.C);
+  out.put_vector(s.history.a_bar);
+}
+
+void restore_simulation(CheckpointReader& in, MpmSimulation& simulation) {
+  if (in.get_string() != kMpmCheckpointTag) in.fail("not an MPM state of this version");
+  const Particles& initial = simulation.model().initial;
+  const int64_t n = initial.size();
+  MpmState s;
+  s.particles = initial;
+  s.step = in.get<int64_t>();
+  s.time = in.get<double>();
+  const double total = in.get<double>();
+  s.particles.x = in.get_vector<double>(3 * n);
+  s.particles.v = in.get_vector<double>(3 * n);
+  s.particles.F = in.get_vector<double>(9 * n);
+  s.particles.C = in.get_vector<double>(9 * n);
+  s.history.a_bar = in.get_vector<double>(3 * n);
+  if (s.step < 0 || !std::isfinite(s.time)) in.fail("negative step, or non-finite time");
+  if (!std::isfinite(total)) in.fail("non-finite energy");
+  for (const std::vector<double>* field : {&s.particles.x, &s.particles.v, &s.particles.F, &s.particles.C,
+                                           &s.history.a_bar})
+    if (!all_finite(*field)) in.fail("non-finite particle positions, velocities, deformations or accelerations");
+  simulation.adopt(s, total);
 }
 
 }  // namespace nexdyn

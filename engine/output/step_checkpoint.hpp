@@ -1,9 +1,13 @@
-// The simulation's part of a checkpoint: the State and the StepHistory, nothing else (everything
-// else the engine keeps between steps is a cache rebuilt from these two). Written into and read
-// from the payload of a checkpoint file (checkpoint_file.hpp); run.cpp adds the run's own record.
+// A simulation's part of a checkpoint. For tet bodies the State and the StepHistory, nothing else
+// (everything else the engine keeps between steps is a cache rebuilt from these two); for
+// particle bodies the MpmState and the energy the last row was measured from. Written into and
+// read from the payload of a checkpoint file (checkpoint_file.hpp); run.cpp adds the run's own
+// record. The simulations know nothing of checkpoints: they hand out their state and adopt one.
 #pragma once
 
+#include "engine/mpm/mpm_simulation.hpp"
 #include "engine/output/checkpoint_file.hpp"
+#include "engine/simulation.hpp"
 #include "engine/state.hpp"
 #include "engine/step_history.hpp"
 
@@ -28,5 +32,13 @@ void write_step_checkpoint(CheckpointWriter& out, const State& state, const Step
 // `history` untouched. On success x_tilde is x, and the contact pattern is marked for a rebuild.
 void read_step_checkpoint(CheckpointReader& in, const StepCheckpointShape& shape, State& state,
                           StepHistory& history);
+
+// The whole simulation: what its next steps depend on, written, or read back, checked against the
+// simulation's scene and adopted (CheckpointError naming the fault otherwise, the simulation
+// untouched). A restored simulation takes the same steps as the saved one, bit for bit.
+void save_simulation(CheckpointWriter& out, const Simulation& simulation);
+void restore_simulation(CheckpointReader& in, Simulation& simulation);
+void save_simulation(CheckpointWriter& out, const MpmSimulation& simulation);
+void restore_simulation(CheckpointReader& in, MpmSimulation& simulation);
 
 }  // namespace nexdyn

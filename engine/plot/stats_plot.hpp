@@ -1,16 +1,18 @@
 // nexdyn plot: PNG charts of a finished (or unfinished) run, drawn from its stats.csv and
 // timings.csv by gnuplot (issue 21).
 //
-// The CSV files are read strictly first, in C++: a header holding the columns the charts need,
+// The CSV files are read strictly first, in C++ (number_table.hpp): a header holding the columns the charts need,
 // then rows of as many fields, each a finite number. Bad input is refused with one line naming
 // the file, the line and the column, before anything is written, so gnuplot never sees a value
 // it would silently skip or misread. The one exception is min_distance, which a step without
 // any contact pair writes as "inf": that is read as a missing value.
 //
 // The charts are then drawn by one gnuplot run (pngcairo terminal) whose script, with the data
-// inline, C++ writes. gnuplot draws into a temporary folder inside the output folder, and each
+// inline, C++ writes (plot_script.hpp; the run: gnuplot_runner.hpp). gnuplot draws into a temporary folder inside the output folder, and each
 // PNG is renamed into place only after gnuplot succeeded: a failure leaves no half-drawn file.
 #pragma once
+
+#include "engine/plot/number_table.hpp"
 
 #include <filesystem>
 #include <string>
@@ -18,26 +20,6 @@
 #include <vector>
 
 namespace nexdyn {
-
-// A CSV file of numbers: the header's column names and every column's values.
-struct NumberTable {
-  std::filesystem::path file;
-  std::vector<std::string> names;
-  std::vector<std::vector<double>> columns;  // columns[c][row], as many rows in each
-
-  size_t rows() const { return columns.empty() ? 0 : columns.front().size(); }
-  // The column's values, or nullptr when the header has no such column.
-  const std::vector<double>* find(std::string_view name) const;
-};
-
-// Reads `file` strictly: a header that holds every name in `required`, then at least one row,
-// each with as many fields as the header, each field a finite number. A column named in
-// `may_be_missing` also takes "inf" or an empty field, read as NaN. With `partial` (a
-// *.partial.csv a run is still appending to), a last line without its newline is a row being
-// written and is left out. Throws std::runtime_error with one line naming the file, the line
-// and the column.
-NumberTable read_number_table(const std::filesystem::path& file, const std::vector<std::string>& required,
-                              const std::vector<std::string>& may_be_missing = {}, bool partial = false);
 
 struct PlotOptions {
   std::filesystem::path run_dir;  // the output folder of nexdyn run

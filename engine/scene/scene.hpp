@@ -13,6 +13,7 @@
 #include "engine/model.hpp"
 #include "engine/mpm/mpm_model.hpp"
 #include "engine/scene/scene_error.hpp"
+#include "engine/solver/linear_solver_kind.hpp"
 #include "engine/state.hpp"
 
 #include <cstdint>
@@ -47,9 +48,6 @@ enum class SolverMethod : uint8_t {
   linearized,           // one linear solve of the potential's quadratic model at x_n (Baraff-Witkin)
   projective_dynamics,  // local-global iterations on the arap energy (engine/solver/projective_dynamics.hpp)
 };
-// The linear solver of "linearized" ("solver.linear").
-enum class LinearSolverKind : uint8_t { cholmod, pcg };
-
 struct SolverSettings {
   SolverMethod method = SolverMethod::newton;
   LinearSolverKind linear = LinearSolverKind::cholmod;

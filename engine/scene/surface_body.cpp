@@ -1,12 +1,12 @@
 // Surface files as bodies, with the mesh cache (see surface_body.hpp).
 #include "engine/scene/surface_body.hpp"
 
+#include "engine/atomic_file.hpp"
 #include "engine/mesh/mesh_file.hpp"
 #include "engine/mesh/msh_reader.hpp"
 #include "engine/mesh/msh_writer.hpp"
 #include "engine/mesh/surface_check.hpp"
 #include "engine/mesh/surface_reader.hpp"
-#include "engine/output/frame_writer.hpp"
 
 #include <algorithm>
 #include <cctype>

@@ -13,17 +13,17 @@
 //
 // H is solved by CHOLMOD (the Newton pattern, analysed once) or, with "solver.linear": "pcg", by
 // conjugate gradients with a Jacobi preconditioner on products H w computed tet by tet
-// (engine/solver/tet_slab_operator.hpp), without assembling K. CG stops when the preconditioned
+// (engine/sparse/tet_slab_operator.hpp), without assembling K. CG stops when the preconditioned
 // residual, an estimate of the error left in d, is below kCgToleranceRatio of the Newton
 // tolerance (velocity-scaled, m/s), so both paths agree to well within that tolerance.
 #pragma once
 
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/model.hpp"
-#include "engine/scene/scene.hpp"
-#include "engine/solver/cholmod_solver.hpp"
-#include "engine/solver/step_status.hpp"
-#include "engine/solver/tet_slab_operator.hpp"
+#include "engine/solver/linear_solver_kind.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
+#include "engine/step_result.hpp"
+#include "engine/sparse/tet_slab_operator.hpp"
 #include "engine/step_context.hpp"
 #include "engine/terms/damping_term.hpp"
 

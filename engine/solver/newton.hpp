@@ -24,11 +24,11 @@
 // finish.
 #pragma once
 
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/model.hpp"
-#include "engine/solver/island_system.hpp"
-#include "engine/solver/islands.hpp"
-#include "engine/solver/step_status.hpp"
+#include "engine/sparse/island_system.hpp"
+#include "engine/sparse/islands.hpp"
+#include "engine/step_result.hpp"
 #include "engine/step_profile.hpp"
 
 #include <cstdint>
@@ -78,7 +78,7 @@ class NewtonSolver {
   void set_profile(StepProfile* profile) { profile_ = profile; }
 
   // Holds these vertices where they are in the coming solves (held = true), or releases them
-  // again; for kinematic vertices once they are on their targets (engine/kinematic_targets.hpp),
+  // again; for kinematic vertices once they are on their targets (engine/potential/kinematic_targets.hpp),
   // and for sleeping bodies. Vertices held `in_islands` stay in the islands they were solved in,
   // as rows of the identity: a kinematic boundary is pulled in one solve and held in the next,
   // and so both solve the same islands with the same factors (without it, each solve of the

@@ -60,8 +60,8 @@
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/solver/cholmod_solver.hpp"
-#include "engine/solver/step_status.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
+#include "engine/step_result.hpp"
 
 #include <cstdint>
 #include <map>

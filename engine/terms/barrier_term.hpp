@@ -7,7 +7,7 @@
 
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/model.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/potential_term.hpp"
 #include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
 

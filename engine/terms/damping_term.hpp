@@ -13,16 +13,16 @@
 // 004's [M + h D + h^2 K] system after linearisation. Explicit schemes use D at the predicted
 // velocity instead (add_explicit_acceleration).
 //
-// Storage: the stiffness part keeps a1 K_t(x_n) per tet (engine/solver/tet_slab_operator.hpp)
+// Storage: the stiffness part keeps a1 K_t(x_n) per tet (engine/sparse/tet_slab_operator.hpp)
 // and the same matrix in the elastic pattern's order; results do not depend on the thread
 // count. Its Hessian adds to the elastic pattern's values (the term is listed after the elastic
 // term).
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/potential_term.hpp"
-#include "engine/solver/hessian_pattern.hpp"
-#include "engine/solver/tet_slab_operator.hpp"
+#include "engine/potential/potential_term.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
+#include "engine/sparse/tet_slab_operator.hpp"
 #include "engine/state.hpp"
 
 #include <memory>

@@ -1,10 +1,10 @@
-// Elasticity: e(x) = Psi(x), the sum of the tets' strain energies (engine/elastic_assembly.hpp),
+// Elasticity: e(x) = Psi(x), the sum of the tets' strain energies (engine/potential/elastic_assembly.hpp),
 // weight s. Its Hessian is the elastic pattern's values, which also carry the joints' constant
-// coupling slabs (engine/joints.hpp): the one pattern_values term.
+// coupling slabs (engine/potential/joints.hpp): the one pattern_values term.
 #pragma once
 
-#include "engine/elastic_assembly.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/potential_term.hpp"
 
 #include <vector>
 

@@ -4,7 +4,7 @@
 #pragma once
 
 #include "engine/contact/friction_potential.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/potential_term.hpp"
 #include "engine/step_profile.hpp"
 #include "engine/terms/barrier_term.hpp"
 

@@ -6,7 +6,7 @@
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/potential_term.hpp"
 
 namespace nexdyn {
 

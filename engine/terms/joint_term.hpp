@@ -1,10 +1,10 @@
 // Joints: e(x) = Phi_joints(x), their augmented Lagrangian with its weight 1 / (gamma c_a) inside
-// (engine/joints.hpp), weight s. Its Hessian is constant and lives in the elastic pattern's
+// (engine/potential/joints.hpp), weight s. Its Hessian is constant and lives in the elastic pattern's
 // coupling slabs (written by JointSet::set_stiffness), so this term adds gradients only.
 #pragma once
 
-#include "engine/joints.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/joints.hpp"
+#include "engine/potential/potential_term.hpp"
 
 namespace nexdyn {
 

@@ -1,10 +1,10 @@
 // Kinematic targets: e(x) = Phi_kinematic(x), the augmented Lagrangian that pulls the vertices of
-// moving boundaries and obstacles in contact scenes to their targets (engine/kinematic_targets.hpp),
+// moving boundaries and obstacles in contact scenes to their targets (engine/potential/kinematic_targets.hpp),
 // weight 1: it is measured against the inertia. Hessian: its stiffness on the diagonal.
 #pragma once
 
-#include "engine/kinematic_targets.hpp"
-#include "engine/potential_term.hpp"
+#include "engine/potential/kinematic_targets.hpp"
+#include "engine/potential/potential_term.hpp"
 
 namespace nexdyn {
 

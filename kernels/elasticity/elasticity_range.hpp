@@ -1,6 +1,6 @@
 // Range drivers of tetrahedral elasticity: plain loops over tets [begin, end) of flat arrays, the
 // hot path of every Newton iteration. The engine cuts the tets into fixed-size chunks, runs them on
-// TBB workers and gathers the per-tet slabs in a fixed order (engine/elastic_assembly.cpp), so the
+// TBB workers and gathers the per-tet slabs in a fixed order (engine/potential/elastic_assembly.cpp), so the
 // results do not depend on the thread count.
 //
 // Inside the loops: no allocation, no virtual call, no exception, one material (template

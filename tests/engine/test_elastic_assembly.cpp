@@ -1,9 +1,9 @@
 // Global assembly against independent references: the sparse pattern against a dense sum of the
 // element Hessians, the global gradient against finite differences of the global energy,
 // bitwise equality of everything for 1 and 2 threads and for any size of the Hessian blocks.
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 #include "tests/engine/test_support.hpp"
 #include "tests/threads_support.hpp"

@@ -6,8 +6,8 @@
 // FrictionPotential); terms of vertices in group -1 contribute nothing.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/friction_potential.hpp"
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "kernels/barrier/barrier.hpp"
 #include "kernels/distance/edge_edge_distance.hpp"
 #include "kernels/distance/edge_edge_mollifier.hpp"

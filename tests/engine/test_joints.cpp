@@ -1,7 +1,7 @@
-// Joints (engine/joints.hpp, issue 4): attachment, the augmented Lagrangian's derivatives, the
+// Joints (engine/potential/joints.hpp, issue 4): attachment, the augmented Lagrangian's derivatives, the
 // consistent initial acceleration, and the double pendulum of seed 000 (Newmark keeps its
 // energy, implicit Euler loses it, the joints hold).
-#include "engine/joints.hpp"
+#include "engine/potential/joints.hpp"
 #include "engine/simulation.hpp"
 #include "test_support.hpp"
 #include "tests/engine/test_support.hpp"

@@ -1,7 +1,7 @@
-// The potential as a list of terms (engine/potential_term.hpp): a term registered with one
+// The potential as a list of terms (engine/potential/potential_term.hpp): a term registered with one
 // add_term line enters the energy, the group energies, the gradient and the Hessian's diagonal
 // with its class's weight, and nothing else changes.
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>

@@ -3,6 +3,7 @@
 // pushing wall, from a warmed-up history); a step that fails at every level leaves the state
 // before it and says what failed and where.
 #include "engine/output/checkpoint_file.hpp"
+#include "engine/output/step_checkpoint.hpp"
 #include "engine/run.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
@@ -116,9 +117,9 @@ TEST_CASE("a rolled-back step with history is exactly two steps of half the dt: 
     Simulation recovered(full), halves(half);
     for (int k = 0; k < c.warmup; ++k) REQUIRE(recovered.step().status == StepStatus::ok);
     CheckpointWriter saved;
-    recovered.save(saved);
+    save_simulation(saved, recovered);
     CheckpointReader in(saved.bytes(), "the warm-up");
-    halves.restore(in);
+    restore_simulation(in, halves);
     // The history is not trivial: the joints hold, or the wall pushes.
     const StepHistory& h = recovered.history();
     const bool joints = !h.joint_multipliers.empty();

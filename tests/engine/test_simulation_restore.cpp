@@ -2,6 +2,7 @@
 // saved from: over contact, friction, moving obstacles and joints, whose solvers all carry state
 // from step to step (barrier stiffness, contact pattern, multipliers, stiffenings).
 #include "engine/output/checkpoint_file.hpp"
+#include "engine/output/step_checkpoint.hpp"
 #include "engine/run.hpp"
 #include "engine/output/checkpoint_file.hpp"
 #include "engine/simulation.hpp"
@@ -37,12 +38,12 @@ void check_restore(const std::string& scene_name, int before, int after) {
   Simulation original(scene);
   take_steps(original, before);
   CheckpointWriter saved;
-  original.save(saved);
+  save_simulation(saved, original);
   const std::vector<std::string> expected = take_steps(original, after);
 
   Simulation restored(scene);
   CheckpointReader in(saved.bytes(), "test");
-  restored.restore(in);
+  restore_simulation(in, restored);
   CHECK_NOTHROW(in.expect_end());
   CHECK(restored.state().step == before);
   const std::vector<std::string> rows = take_steps(restored, after);
@@ -69,8 +70,8 @@ TEST_CASE("restoring refuses a checkpoint of another scene") {
   const Scene cantilever = load_scene(test::scene_path("cantilever.json"));
   Simulation a(stack);
   CheckpointWriter saved;
-  a.save(saved);
+  save_simulation(saved, a);
   Simulation b(cantilever);
   CheckpointReader in(saved.bytes(), "stack.ckpt");
-  CHECK_THROWS_AS(b.restore(in), CheckpointError);
+  CHECK_THROWS_AS(restore_simulation(in, b), CheckpointError);
 }

@@ -3,6 +3,7 @@
 // that of the same scene with sleeping off; nothing changes before the first body sleeps; a
 // checkpoint carries the sleepers.
 #include "engine/output/checkpoint_file.hpp"
+#include "engine/output/step_checkpoint.hpp"
 #include "engine/run.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
@@ -135,7 +136,7 @@ TEST_CASE("a restored simulation with sleeping bodies continues bit for bit") {
   for (int k = 0; k < 30; ++k) step_ok(original);
   REQUIRE(original.last_stats().sleeping_bodies == 1);  // A sleeps, B still falls
   CheckpointWriter saved;
-  original.save(saved);
+  save_simulation(saved, original);
   std::vector<std::string> expected;
   for (int k = 0; k < 40; ++k) {
     step_ok(original);
@@ -143,7 +144,7 @@ TEST_CASE("a restored simulation with sleeping bodies continues bit for bit") {
   }
   Simulation restored(scene);
   CheckpointReader in(saved.bytes(), "test");
-  restored.restore(in);
+  restore_simulation(in, restored);
   CHECK_NOTHROW(in.expect_end());
   for (int k = 0; k < 40; ++k) {
     step_ok(restored);

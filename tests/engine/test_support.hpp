@@ -4,7 +4,7 @@
 
 #include "engine/mesh/mesh_error.hpp"
 #include "engine/run.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 #include "engine/scene/scene.hpp"
 
 #include <Eigen/Core>

@@ -6,8 +6,8 @@
 // (Candidates against the brute force: test_candidates.cpp.)
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/candidates.hpp"
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "kernels/barrier/barrier.hpp"
 #include "kernels/distance/edge_edge_distance.hpp"
 #include "kernels/distance/edge_edge_mollifier.hpp"

@@ -3,7 +3,7 @@
 // frame (obstacle meshes included) and no vertex behind an obstacle plane. Plus the physics of
 // the head-on collision and thread-count independence with contact.
 #include "engine/contact/barrier_potential.hpp"
-#include "engine/contact/intersection.hpp"
+#include "engine/mesh/intersection.hpp"
 #include "engine/simulation.hpp"
 #include "kernels/isa.hpp"
 #include "tests/engine/test_support.hpp"
@@ -157,7 +157,7 @@ TEST_CASE("scene head_on: momentum is conserved, the boxes bounce apart, newmark
     for (int d = 0; d < 3; ++d) CHECK(std::abs(row[kPx + d]) <= 1e-6 * p0);
   }
   // Energy: none is created, and the bounce keeps most of it (the contact impulse treats the
-  // surface layer like implicit Euler; see engine/incremental_potential.hpp).
+  // surface layer like implicit Euler; see engine/potential/incremental_potential.hpp).
   const double before = rows.front()[kTotal];
   const double after = rows.back()[kTotal];
   CHECK(after <= before * (1.0 + 1e-6));

@@ -95,6 +95,30 @@ TEST_CASE("friction potential: gradient and Hessian match finite differences ove
   CHECK(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(H).eigenvalues().minCoeff() > -1e-9 * H.norm());
 }
 
+TEST_CASE("friction potential: the lag keeps its own copy of the start positions") {
+  // The slip is measured from the step's start positions. The lag used to keep a pointer to the
+  // buffer it was given (State::x), which the step swaps away at its end: the energy then read
+  // whatever the buffer held next. The lag must own what it measures from.
+  const Scene scene = stacked_boxes();
+  const Model& model = scene.model;
+  const std::vector<double> x_lag = test::perturbed(model.rest_positions, 2e-3, 3);
+  BarrierPotential contact(model, 0.05);
+  contact.find_candidates(x_lag.data(), nullptr);
+  contact.build_active_set(x_lag.data());
+  FrictionPotential friction(model, FrictionTable(1, {0.4, 0.4}), 0.1);
+  std::vector<double> start = x_lag;
+  friction.lag(contact, x_lag.data(), 1e3, start.data(), 0.01);
+  REQUIRE(friction.num_stencils() > 0);
+  const std::vector<double> x = test::perturbed(x_lag, 2e-3, 5);
+  const double energy = friction.energy(x.data());
+  const std::vector<double> gradient = friction_gradient_at(friction, x);
+  CHECK(energy > 0.0);
+  const std::vector<double> other = test::perturbed(x_lag, 1e-2, 7);
+  std::copy(other.begin(), other.end(), start.begin());  // the step's buffer reused for something else
+  CHECK(friction.energy(x.data()) == energy);
+  CHECK(friction_gradient_at(friction, x) == gradient);
+}
+
 namespace {
 
 // A 0.1 m block sliding at v0 = 1 m/s along x on a fixed 0.4 x 0.1 x 0.4 block, mu = 0.5: every

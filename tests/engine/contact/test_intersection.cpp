@@ -1,8 +1,8 @@
-// Tests of engine/contact/intersection: the exact triangle-triangle test against references that
+// Tests of engine/mesh/intersection: the exact triangle-triangle test against references that
 // compute the answer another way (parametric edge-triangle solves in long double, 2D separating
 // axes), exact touching and 1e-12 near-miss cases, the mesh-level pair search against its O(n^2)
 // definition on two box meshes, and the winding-number inside test on a box and a sphere.
-#include "engine/contact/intersection.hpp"
+#include "engine/mesh/intersection.hpp"
 #include "tests/engine/test_support.hpp"
 #include "tests/threads_support.hpp"
 

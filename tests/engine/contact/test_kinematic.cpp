@@ -1,8 +1,8 @@
-// Moving boundaries and obstacles in contact scenes (engine/kinematic_targets.hpp, issue 4):
+// Moving boundaries and obstacles in contact scenes (engine/potential/kinematic_targets.hpp, issue 4):
 // which motions become kinematic, the augmented Lagrangian against its definition, and a wall
 // pushing a block across a floor with friction: the block moves with the wall, the push equals
 // mu m g, the wall stays exactly on its path, on 1 and 2 threads alike.
-#include "engine/kinematic_targets.hpp"
+#include "engine/potential/kinematic_targets.hpp"
 #include "engine/simulation.hpp"
 #include "tests/engine/test_support.hpp"
 #include "tests/threads_support.hpp"

@@ -7,7 +7,7 @@
 // use it only around calls the test makes itself (doctest runs one test at a time).
 #pragma once
 
-#include "engine/solver/cholmod_runtime.hpp"
+#include "engine/sparse/cholmod_runtime.hpp"
 
 #include <SuiteSparse_config.h>
 

@@ -1,10 +1,10 @@
-// The engine's OpenMP, BLAS and LAPACK entry points for CHOLMOD (engine/solver/cholmod_runtime.hpp):
+// The engine's OpenMP, BLAS and LAPACK entry points for CHOLMOD (engine/sparse/cholmod_runtime.hpp):
 // CHOLMOD's calls reach them, and each routine keeps its reference-BLAS contract, checked against
 // plain loops over every flag combination, with leading dimensions larger than the rows, vector
 // strides other than 1 (negative ones run from the far end), beta = 0 over a C full of NaN (BLAS
 // does not read it) and a matrix whose third leading minor is not positive definite; and CHOLMOD's
 // memory: aligned, big blocks on huge-page boundaries, realloc's contract kept.
-#include "engine/solver/cholmod_runtime.hpp"
+#include "engine/sparse/cholmod_runtime.hpp"
 
 #include <SuiteSparse_config.h>
 #include <dlfcn.h>

@@ -1,10 +1,10 @@
-// The CHOLMOD wrapper (engine/solver/cholmod_solver.hpp) on a small tridiagonal system, simplicial
+// The CHOLMOD wrapper (engine/sparse/cholmod_solver.hpp) on a small tridiagonal system, simplicial
 // and supernodal: a singular and an indefinite matrix are refused with factorization_failed and
 // a sentence, CHOLMOD running out of memory in each of its three calls comes back as
 // linear_solver_failed naming the call and CHOLMOD's status, nothing throws, and the same solver
 // works again once the matrix or the memory is back.
-#include "engine/solver/cholmod_solver.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 #include "tests/engine/solver/suitesparse_out_of_memory.hpp"
 #include "tests/engine/test_support.hpp"
 

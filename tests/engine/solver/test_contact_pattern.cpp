@@ -1,9 +1,9 @@
-// The contact pattern (engine/solver/contact_pattern.hpp): which vertex pairs it holds as contacts
+// The contact pattern (engine/sparse/contact_pattern.hpp): which vertex pairs it holds as contacts
 // come and go. It must grow to every pair a stencil needs, keep pairs no longer used (so that a
 // contact flickering in and out does not cost a new analysis each time), and drop them at a
 // step's start only once it holds more than kShrinkRatio x the pairs in use + kShrinkSlack.
-#include "engine/solver/contact_pattern.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/contact_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <doctest/doctest.h>
 

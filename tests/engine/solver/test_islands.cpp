@@ -1,14 +1,14 @@
-// Islands of the Newton system (engine/solver/islands.hpp) and their linear systems
-// (engine/solver/island_system.hpp), against independent references: the union-find against a
+// Islands of the Newton system (engine/sparse/islands.hpp) and their linear systems
+// (engine/sparse/island_system.hpp), against independent references: the union-find against a
 // naive relabelling and a breadth-first search on random graphs, the islands of real multi-body
 // models against a breadth-first search over tets and stencils, and every island's solve
 // (dense, simplicial and supernodal CHOLMOD) against an Eigen LDL^T of the whole matrix.
 // Indefinite blocks must be refused on every path: CHOLMOD's simplicial factor is an LDL^T
 // unless common->final_ll asks for LL^T, and an LDL^T accepts an indefinite matrix.
-#include "engine/elastic_assembly.hpp"
-#include "engine/solver/hessian_pattern.hpp"
-#include "engine/solver/island_system.hpp"
-#include "engine/solver/islands.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
+#include "engine/sparse/island_system.hpp"
+#include "engine/sparse/islands.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>

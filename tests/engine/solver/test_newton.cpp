@@ -7,8 +7,8 @@
 // of memory) gives a status, not an exception, and the next solve works again. The solver's
 // history (NewtonSolver::set_history) shows what each iteration did.
 #include "engine/contact/barrier_potential.hpp"
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/solver/newton.hpp"
 #include "tests/engine/solver/suitesparse_out_of_memory.hpp"
 #include "tests/engine/test_support.hpp"

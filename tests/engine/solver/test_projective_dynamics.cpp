@@ -3,8 +3,8 @@
 // on a plane, and bitwise results on 1 and 2 threads.
 #include "engine/solver/projective_dynamics.hpp"
 
-#include "engine/elastic_assembly.hpp"
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/incremental_potential.hpp"
 #include "engine/integrator.hpp"
 #include "engine/simulation.hpp"
 #include "engine/step_history.hpp"

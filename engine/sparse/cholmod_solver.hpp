@@ -12,7 +12,7 @@
 // BLAS's, invalid input); error() then says which call failed and why, in CHOLMOD's words.
 #pragma once
 
-#include "engine/solver/step_status.hpp"
+#include "engine/step_result.hpp"
 
 #include <cstdint>
 #include <string>

@@ -1,5 +1,5 @@
 // The incremental potential as a loop over its terms (see incremental_potential.hpp).
-#include "engine/incremental_potential.hpp"
+#include "engine/potential/incremental_potential.hpp"
 
 #include "engine/parallel.hpp"
 #include "engine/terms/elastic_term.hpp"

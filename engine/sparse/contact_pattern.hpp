@@ -14,7 +14,7 @@
 #pragma once
 
 #include "engine/active_subset.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <cstdint>
 #include <utility>

@@ -1,6 +1,6 @@
 // One term of the incremental potential (incremental_potential.hpp): inertia and gravity,
-// elasticity, joints, the contact barrier, friction, kinematic targets. The potential is the
-// ordered list of its terms,
+// elasticity, joints, the contact barrier, friction, kinematic targets, Rayleigh damping. The
+// potential is the ordered list of its terms,
 //   E(x) = sum over terms t of w_t e_t(x),
 // where w_t is the weight of the term's class (TermScale): 1, the integrator's potential scale s,
 // or its contact scale s_c (engine/step_context.hpp). The solver loops over the list; each term is
@@ -16,15 +16,16 @@
 //                  end_iteration(x')        at the accepted point (adaptive stiffness)
 //
 // Hessians come in three kinds (TermHessian), merged by the potential in this order:
-//   pattern_values  the term writes the values of the elastic pattern (one term: elasticity,
-//                   which also carries the joints' constant coupling slabs);
+//   pattern_values  the term writes the values of the elastic pattern: elasticity first (which
+//                   also carries the joints' constant coupling slabs), then Rayleigh damping,
+//                   which adds its k D into the same values (engine/terms/damping_term.hpp);
 //   stencil_slabs   the term keeps one dense slab per stencil (slabs()), merged into the contact
-//                   pattern (solver/contact_pattern.hpp);
+//                   pattern (sparse/contact_pattern.hpp);
 //   diagonal        the term adds to the diagonal of the merged matrix (add_diagonal()).
 #pragma once
 
 #include "engine/active_subset.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 #include "engine/step_context.hpp"
 
 #include <cstdint>

@@ -9,7 +9,7 @@
 // tests needs only signs of orientation determinants, no constructed points. With exact signs the
 // answer is exact (Shewchuk 1997 for the predicates; the edge-triangle test is the classic
 // Plücker/orientation form, e.g. Ericson, "Real-Time Collision Detection", 5.3.4).
-#include "engine/contact/intersection.hpp"
+#include "engine/mesh/intersection.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>

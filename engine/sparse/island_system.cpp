@@ -1,5 +1,5 @@
 // One island's linear system (see island_system.hpp).
-#include "engine/solver/island_system.hpp"
+#include "engine/sparse/island_system.hpp"
 
 #include <limits>
 #include <new>

@@ -1,4 +1,4 @@
-#include "engine/solver/tet_slab_operator.hpp"
+#include "engine/sparse/tet_slab_operator.hpp"
 
 #include "engine/parallel.hpp"
 #include "kernels/elasticity/elasticity_range.hpp"

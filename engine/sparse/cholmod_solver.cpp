@@ -1,7 +1,7 @@
 // CHOLMOD wrapper (see cholmod_solver.hpp).
-#include "engine/solver/cholmod_solver.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
 
-#include "engine/solver/cholmod_runtime.hpp"
+#include "engine/sparse/cholmod_runtime.hpp"
 
 #include <cholmod.h>
 

@@ -1,5 +1,5 @@
 // Islands of the Newton system (see islands.hpp).
-#include "engine/solver/islands.hpp"
+#include "engine/sparse/islands.hpp"
 
 #include <cstddef>
 #include <numeric>

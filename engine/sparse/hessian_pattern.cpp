@@ -1,5 +1,5 @@
 // Symbolic and numeric gather of the tet Hessian (see hessian_pattern.hpp).
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include "engine/parallel.hpp"
 

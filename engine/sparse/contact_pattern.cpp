@@ -1,5 +1,5 @@
 // Elastic + contact Newton pattern (see contact_pattern.hpp).
-#include "engine/solver/contact_pattern.hpp"
+#include "engine/sparse/contact_pattern.hpp"
 
 #include "engine/parallel.hpp"
 

@@ -7,7 +7,7 @@
 // the barrier pushes what is in their way. The step's potential gets
 //   Phi(x) = sum_i k_i / 2 |x_i - t_i|^2 - lambda_i . (x_i - t_i),   t_i: target at t_{n+1},
 // and between Newton solves lambda_i <- lambda_i - k_i (x_i - t_i) until every |x_i - t_i| is
-// below the tolerance (as for joints, engine/joints.hpp: lambda - k (x - t) is the force that
+// below the tolerance (as for joints, engine/potential/joints.hpp: lambda - k (x - t) is the force that
 // holds the vertex on its path, and it is kept from step to step in StepHistory, so steady pushing
 // needs one solve per step). At the end of the step the vertices are set exactly to their targets, after
 // a CCD check of that last, tiny move.
@@ -18,7 +18,7 @@
 
 #include "engine/model.hpp"
 #include "engine/step_history.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <Eigen/Core>
 

@@ -9,7 +9,7 @@
 #pragma once
 
 #include "engine/model.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <cstdint>
 #include <vector>

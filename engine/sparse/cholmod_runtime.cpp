@@ -6,7 +6,7 @@
 // hold NaN), alpha = 0 reads neither A nor B. Matrices are column-major with leading dimensions,
 // as in Fortran; integers are 32-bit, as in Debian's BLAS and CHOLMOD. Arguments are trusted (the
 // reference BLAS would report a bad one through xerbla; CHOLMOD passes none).
-#include "engine/solver/cholmod_runtime.hpp"
+#include "engine/sparse/cholmod_runtime.hpp"
 
 #include <SuiteSparse_config.h>
 #include <dlfcn.h>

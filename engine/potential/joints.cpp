@@ -1,5 +1,5 @@
 // Augmented-Lagrangian joints (see joints.hpp).
-#include "engine/joints.hpp"
+#include "engine/potential/joints.hpp"
 
 #include <algorithm>
 

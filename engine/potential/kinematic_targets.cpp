@@ -1,7 +1,7 @@
 // Augmented Lagrangian of kinematic vertices (see kinematic_targets.hpp). Serial loops: the
 // kinematic vertices are a small part of a scene, and every sum runs in vertex order, so the
 // results do not depend on the number of threads.
-#include "engine/kinematic_targets.hpp"
+#include "engine/potential/kinematic_targets.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -14,7 +14,7 @@
 // increasing order, so the numbering depends on the couplings only, never on a thread count.
 #pragma once
 
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <cstdint>
 #include <vector>

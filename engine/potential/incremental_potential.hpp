@@ -1,14 +1,15 @@
 // The incremental potential of one time step (DESIGN.md sections 4 and 5):
 //   E(x) = w/2 (x - x_tilde)^T M (x - x_tilde)
 //          + s (Psi_elastic(x) + Phi_joints(x) - sum_i m_i g . (x_i - x_tilde_i))
-//          + s_c (kappa B(x) + D(x)) + Phi_kinematic(x)
+//          + s_c (kappa B(x) + D(x)) + Phi_kinematic(x) + s Phi_damping(x)
 // with w = 1 for dynamic schemes and 0 for "static", s the integrator's potential scale,
-// Phi_joints the augmented Lagrangian of the joints (engine/joints.hpp, with its weight
+// Phi_joints the augmented Lagrangian of the joints (engine/potential/joints.hpp, with its weight
 // 1 / (gamma c_a) inside), kappa B the IPC barrier of contact (when the scene has contact) and D
 // its lagged friction (engine/contact/friction_potential.hpp), both weighted by the contact
 // scale s_c = r h^2 (IntegratorParams::contact_scale), and Phi_kinematic the augmented
 // Lagrangian that moves the vertices of moving boundaries and obstacles in contact scenes
-// (engine/kinematic_targets.hpp).
+// (engine/potential/kinematic_targets.hpp), and Phi_damping = 1/(2k) v(x)^T D v(x) the Rayleigh
+// damping of materials that damp (engine/terms/damping_term.hpp).
 //
 // Why a weight of their own: contact forces are impulsive. The trapezoidal rule (Newmark) would
 // apply the barrier force found at the end of a step half in this step and half again in the
@@ -26,9 +27,10 @@
 // 0.01% to 1e3% off in 70 steps). Gravity is measured from
 // x_tilde (engine/terms/inertia_term.hpp).
 //
-// The potential is the ordered list of its terms (engine/potential_term.hpp, one file each in
+// The potential is the ordered list of its terms (engine/potential/potential_term.hpp, one file each in
 // engine/terms/): inertia and gravity, elasticity, joints, the barrier, friction, the kinematic
-// targets, each weighted by its class's weight (1, s or s_c). E, its gradient and its Hessian are
+// targets and Rayleigh damping (added by Simulation when a material damps), each weighted by its
+// class's weight (1, s or s_c). E, its gradient and its Hessian are
 // sums over the list in list order; the Hessian is merged by kind (the elastic pattern's values,
 // then the stencil slabs, then the diagonals).
 //
@@ -43,12 +45,12 @@
 
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/friction_potential.hpp"
-#include "engine/elastic_assembly.hpp"
-#include "engine/joints.hpp"
-#include "engine/kinematic_targets.hpp"
+#include "engine/potential/elastic_assembly.hpp"
+#include "engine/potential/joints.hpp"
+#include "engine/potential/kinematic_targets.hpp"
 #include "engine/model.hpp"
-#include "engine/potential_term.hpp"
-#include "engine/solver/contact_pattern.hpp"
+#include "engine/potential/potential_term.hpp"
+#include "engine/sparse/contact_pattern.hpp"
 #include "engine/step_context.hpp"
 #include "engine/step_history.hpp"
 #include "engine/step_profile.hpp"
@@ -64,13 +66,13 @@ class IncrementalPotential {
  public:
   // The standard list: inertia and gravity, elasticity, then the joints and the barrier when
   // given (null: none in the scene). The joints' constant Hessian is in the elastic assembly's
-  // coupling slabs (engine/joints.hpp). The barrier stiffness and the contact pattern's pairs
+  // coupling slabs (engine/potential/joints.hpp). The barrier stiffness and the contact pattern's pairs
   // live in `history`, which must outlive the potential.
   IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
                        BarrierPotential* contact = nullptr, const JointSet* joints = nullptr);
   // Appends lagged friction over the contacts (needs the barrier; null: frictionless).
   void set_friction(FrictionPotential* friction);
-  // Appends the kinematic targets (engine/kinematic_targets.hpp; null: none).
+  // Appends the kinematic targets (engine/potential/kinematic_targets.hpp; null: none).
   void set_kinematic(const KinematicTargets* kinematic);
   // Appends any other term (after those above).
   void add_term(std::unique_ptr<PotentialTerm> term);

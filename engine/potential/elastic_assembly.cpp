@@ -1,5 +1,5 @@
 // Parallel elastic assembly over material batches (see elastic_assembly.hpp).
-#include "engine/elastic_assembly.hpp"
+#include "engine/potential/elastic_assembly.hpp"
 
 #include "engine/parallel.hpp"
 #include "kernels/elasticity/elasticity_range.hpp"

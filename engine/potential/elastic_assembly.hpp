@@ -7,7 +7,7 @@
 
 #include "engine/active_subset.hpp"
 #include "engine/model.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -17,7 +17,7 @@ namespace nexdyn {
 class ElasticAssembly {
  public:
   // coupling_groups: (num_groups x 4) vertex ids of extra constant Hessian terms that are not
-  // tets (joints, engine/joints.hpp). Their vertex pairs are in pattern(), and their 12x12 slabs
+  // tets (joints, engine/potential/joints.hpp). Their vertex pairs are in pattern(), and their 12x12 slabs
   // (coupling_slabs(), zero until written) are added to every gradient_hessian().
   // block_tets: the size Hessian blocks are merged up to (see the members; tests use small ones).
   static constexpr int64_t kBlockTets = 8192;

@@ -19,8 +19,8 @@
 // StepStatus from factorize() or solve(), with error() saying why (step_status.hpp).
 #pragma once
 
-#include "engine/solver/cholmod_solver.hpp"
-#include "engine/solver/hessian_pattern.hpp"
+#include "engine/sparse/cholmod_solver.hpp"
+#include "engine/sparse/hessian_pattern.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>

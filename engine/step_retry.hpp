@@ -1,0 +1,65 @@
+// The retry by halving that every kind of simulation takes (tet bodies: Simulation; particle
+// bodies: MpmSimulation), written once.
+//
+// advance_or_split(stepper, t_start, t_end, dt, level, max_halvings, retries) attempts the
+// interval [t_start, t_end] as one step of dt (the scene's dt at level 0). A failed attempt is put back exactly as it found the simulation, and the
+// interval is attempted as two halves, [t_start, t_mid] and [t_mid, t_end] with
+// t_mid = t_start + (t_end - t_start) / 2, each of which may split again, max_halvings deep at
+// most. If either half fails for good, the simulation goes back to where the interval started.
+//
+// - Times are exact: after a successful attempt of [t0, t1] the simulation's time is set to t1,
+//   never to a sum of halves, so a halved step ends at the same time bit for bit as the step it
+//   replaces.
+// - Step sizes are exact too: a half is a step of dt / 2, not of t_mid - t_start (which can differ
+//   in the last bit), so a retried half is exactly a step of a scene with half the dt.
+// - `retries` counts the failed attempts that were split.
+// - When even the smallest attempt fails, its message ends with where the halving stopped:
+//   " (after N halvings of dt, the last try a step of H s from t = T s)".
+// - An outcome with retry_may_help false (particles left the MPM grid) is not split.
+//
+// A Stepper provides:
+//   Snapshot snapshot() const;             everything a failed attempt must put back: the state,
+//                                          the history, and the step's running sums (stats)
+//   void go_back(const Snapshot&);         puts it back, and drops caches built from the failure
+//   StepOutcome attempt(double t_start, double t_end, double dt, int level, const Snapshot& before);
+//                                          one step of dt over the interval from the state at t_start
+//                                          (`before` is that state, for attempts that retake
+//                                          themselves, as the energy guard does)
+//   void set_time(double t);               the state's time after a successful attempt
+#pragma once
+
+#include "engine/step_result.hpp"
+
+#include <cstdio>
+
+namespace nexdyn {
+
+template <typename Stepper>
+StepOutcome advance_or_split(Stepper& stepper, double t_start, double t_end, double dt, int level,
+                             int max_halvings, int& retries) {
+  const auto before = stepper.snapshot();
+  StepOutcome outcome = stepper.attempt(t_start, t_end, dt, level, before);
+  if (outcome.ok()) {
+    stepper.set_time(t_end);
+    return outcome;
+  }
+  stepper.go_back(before);
+  if (!outcome.retry_may_help) return outcome;
+  if (level >= max_halvings) {
+    if (max_halvings == 0) return outcome;
+    char where[160];
+    std::snprintf(where, sizeof where, " (after %d halving%s of dt, the last try a step of %.3g s from t = %.6g s)",
+                  max_halvings, max_halvings == 1 ? "" : "s", dt, t_start);
+    outcome.message += where;
+    return outcome;
+  }
+  ++retries;
+  const double t_mid = t_start + 0.5 * (t_end - t_start);
+  const double half = 0.5 * dt;
+  outcome = advance_or_split(stepper, t_start, t_mid, half, level + 1, max_halvings, retries);
+  if (outcome.ok()) outcome = advance_or_split(stepper, t_mid, t_end, half, level + 1, max_halvings, retries);
+  if (!outcome.ok()) stepper.go_back(before);
+  return outcome;
+}
+
+}  // namespace nexdyn
