@@ -1,8 +1,9 @@
 // Rayleigh damping (engine/terms/damping_term.hpp) on the clamped rubber cantilever of
 // test_analytic_dynamics.cpp: its free vibration decays at the rate of the first mode,
-// zeta = a2 / (2 omega) + a1 omega / 2, the energy balance with the dissipated energy closes
-// under Newmark, the term agrees with finite differences of its own energy, and steps are the
-// same on 1 and 2 threads.
+// zeta = a2 / (2 omega) + a1 omega / 2, under Newmark and (mass damping) under central
+// differences; the energy balance with the dissipated energy closes under Newmark and under
+// central differences, the term agrees with finite differences of its own energy, and steps are
+// the same on 1 and 2 threads.
 #include "engine/simulation.hpp"
 #include "engine/terms/damping_term.hpp"
 #include "tests/engine/cantilever_support.hpp"
@@ -26,10 +27,10 @@ namespace {
 // share a frequency, and the mesh's asymmetry trades energy between them in a slow beat that
 // looks like damping of the vertical one.
 std::string beam_json(const std::string& damping, const std::string& integrator = "newmark",
-                      const std::string& solver = "", const std::string& cells = "20, 2, 4") {
+                      const std::string& solver = "", const std::string& cells = "20, 2, 4", double dt = 0.01) {
   return R"({
     "gravity": [0, -0.01, 0],
-    "time": { "dt": 0.01, "integrator": ")" + integrator + R"(", "energy_guard": false },
+    "time": { "dt": )" + std::to_string(dt) + R"(, "integrator": ")" + integrator + R"(", "energy_guard": false },
     "solver": { "tolerance": 1e-9)" + solver + R"( },
     "materials": { "rubber": { "model": "neohookean", "youngs": 1e7, "poisson": 0.3, "density": 1000)" +
          (damping.empty() ? "" : ", \"damping\": " + damping) + R"( } },
@@ -83,6 +84,17 @@ void half_period_peaks(const Run& run, double level, std::vector<double>& t, std
   }
 }
 
+// The first mode's angular frequency from the crossings of the level (interpolated between steps).
+double crossing_omega(const Run& run, double level) {
+  std::vector<double> crossing;
+  for (size_t k = 1; k < run.y.size(); ++k) {
+    const double a = run.y[k - 1] - level, b = run.y[k] - level;
+    if ((a < 0.0) != (b < 0.0)) crossing.push_back(run.t[k - 1] + (run.t[k] - run.t[k - 1]) * a / (a - b));
+  }
+  REQUIRE(crossing.size() >= 3);
+  return M_PI * double(crossing.size() - 1) / (crossing.back() - crossing.front());
+}
+
 // zeta from the least-squares slope of ln(peak) against t: ln A = c - zeta omega t.
 double measured_zeta(const Run& run, double level, double omega) {
   std::vector<double> t, a;
@@ -108,13 +120,7 @@ TEST_CASE("damping: the cantilever's vibration decays at the Rayleigh rate of it
   // omega from the undamped run: Newmark neither damps nor shifts the period by more than
   // (omega dt)^2 / 12.
   const Run free = run_beam(beam_json(""), 300);
-  std::vector<double> crossing;
-  for (size_t k = 1; k < free.y.size(); ++k) {
-    const double a = free.y[k - 1] - level, b = free.y[k] - level;
-    if ((a < 0.0) != (b < 0.0)) crossing.push_back(free.t[k - 1] + (free.t[k] - free.t[k - 1]) * a / (a - b));
-  }
-  REQUIRE(crossing.size() >= 3);
-  const double omega = M_PI * double(crossing.size() - 1) / (crossing.back() - crossing.front());
+  const double omega = crossing_omega(free, level);
   MESSAGE("undamped first mode: omega = " << omega << " rad/s");
   CHECK(std::abs(measured_zeta(free, level, omega)) < 2e-3);  // no decay without damping
 
@@ -208,4 +214,39 @@ TEST_CASE("damping: steps are bitwise the same on 1 and 2 threads") {
     return x;
   };
   CHECK(final_x(1) == final_x(2));
+}
+
+TEST_CASE("damping: under central differences the cantilever's vibration decays at the mass-damping rate a2 / (2 omega)") {
+  // The explicit schemes take no solve: the damping force -D v is applied at the velocity known
+  // before the step's end, v_n + h (1 - gamma) a_n (Simulation::explicit_update). With mass
+  // damping alone (stiffness damping would put the explicit step's limit at 2 / (a1 omega_max^2),
+  // microseconds here) the first mode must decay at zeta = a2 / (2 omega), and the energy
+  // balance of the explicit step must close as Newmark's does: central differences neither damp
+  // nor create energy beyond (omega dt)^2. dt = 2e-4 s is inside the stability limit of the
+  // beam's smallest tets; 2 s hold four whole half periods.
+  const double level = static_level();
+  const double dt = 2e-4;
+  const int steps = 10000;
+  const Run free = run_beam(beam_json("", "central_difference", "", "20, 2, 4", dt), steps);
+  const double omega = crossing_omega(free, level);
+  const double undamped = measured_zeta(free, level, omega);
+  MESSAGE("central differences, undamped: omega = " << omega << " rad/s, zeta measured " << undamped);
+  CHECK(std::abs(undamped) < 2e-3);  // no decay without damping, and stable
+
+  const double zeta = 0.03, a2 = 2.0 * zeta * omega;
+  const Run run = run_beam(beam_json("{\"mass\": " + std::to_string(a2) + "}", "central_difference", "", "20, 2, 4", dt), steps);
+  const double measured = measured_zeta(run, level, omega);
+  MESSAGE("central differences, mass damping a2 = " << a2 << " 1/s: zeta measured " << measured << ", a2 / (2 omega) = " << zeta);
+  CHECK(measured == test::relative(zeta, 0.03));
+
+  double peak = 0.0, worst = 0.0;
+  for (size_t k = 0; k < run.t.size(); ++k) {
+    peak = std::max(peak, run.kinetic[k]);
+    worst = std::max(worst, std::abs(run.total[k] + run.dissipated[k]));  // the start's total is 0
+    if (k > 0) CHECK(run.dissipated[k] >= run.dissipated[k - 1]);
+  }
+  MESSAGE("largest |total + dissipated - start| = " << worst << " J, peak kinetic " << peak << " J, dissipated "
+                                                       << run.dissipated.back() << " J");
+  CHECK(worst < 0.01 * peak);
+  CHECK(run.dissipated.back() > 0.5 * peak);
 }
