@@ -1,6 +1,8 @@
-// The MPM step under the integrator family (issue 23): free fall on the parabola, momentum
-// conservation, a hanging column against the analytic sag, the bouncing cube's energy under
-// Newmark and implicit Euler, FEM and MPM landing together, the plane conditions, thread count.
+// The MPM step under the integrator family (issue 23): free fall on the parabola and momentum
+// conservation under implicit, explicit and generalized-alpha schemes, a hanging column against
+// the analytic sag, the bouncing cube's energy under Newmark and implicit Euler, FEM and MPM
+// landing together, the plane conditions and Coulomb friction from both sides, a landing on a
+// tilted plane without retries, thread count.
 #include "engine/mpm/mpm_simulation.hpp"
 #include "engine/mpm/mpm_step.hpp"
 #include "engine/mpm/transfer.hpp"
@@ -15,6 +17,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <string>
 
 using namespace nexdyn;
@@ -146,7 +149,7 @@ TEST_CASE("mpm hanging column settles within 5 percent of rho g L^2 over 2E") {
   CHECK(simulation.last_stats().kinetic_energy < 1e-6 * rho * g * L * 0.01);  // settled
 }
 
-TEST_CASE("mpm cube bounces: newmark keeps its energy until landing and never gains, implicit euler decays") {
+TEST_CASE("mpm cube bounces: newmark keeps its energy until landing, then never rises above it or gains in a step, and implicit euler decays") {
   const std::string plane = R"(, "contact": {}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}])";
   {
     const Scene scene = test::scene_from_json(
@@ -161,12 +164,35 @@ TEST_CASE("mpm cube bounces: newmark keeps its energy until landing and never ga
     size_t landing = 0;
     while (landing < rows.size() && rows[landing].contacts == 0) ++landing;
     REQUIRE(landing < rows.size());
-    for (size_t k = 0; k < landing; ++k) CHECK(std::abs(rows[k].total_energy - E0) <= 0.01 * peak_kinetic);
-    double highest = rows[landing].total_energy;
-    for (size_t k = landing; k < rows.size(); ++k) {
-      CHECK(rows[k].total_energy <= highest + 0.01 * peak_kinetic);
-      highest = std::max(highest, rows[k].total_energy);
+    // Before landing: free fall, which Newmark integrates exactly (measured: within 4.6e-13 of
+    // the peak kinetic energy of the start's energy).
+    double before_landing = 0.0;
+    for (size_t k = 0; k < landing; ++k) before_landing = std::max(before_landing, std::abs(rows[k].total_energy - E0));
+    CHECK(before_landing <= 1e-9 * peak_kinetic);
+    // From landing on, compared with the energy at landing, not with a running maximum (which
+    // let a gain of just under 1% of the peak kinetic energy per step through, about 50% over
+    // the run): every later step's total energy stays below it, and no step gains on the one
+    // before. Measured, every step after landing loses energy, at least 7.2e-5 of the peak
+    // kinetic energy (0.46 J), and the energy stays at least 0.0146 of it below the energy at
+    // landing (which is 3.9e-4 of it below the start's). The allowance of a step is what Newton
+    // may leave: it stops once the particles' last moves are below 1e-5 m/s times dt, so the
+    // velocities may be off by about 1e-5 m/s, M v 1e-5 m/s = 1 kg x 0.96 m/s x 1e-5 m/s =
+    // 2e-5 of the peak kinetic energy; the bound against the energy at landing allows five times
+    // that.
+    const double E_landing = rows[landing].total_energy;
+    CHECK(E_landing <= E0 + 2e-5 * peak_kinetic);
+    double above_landing = -std::numeric_limits<double>::infinity(), largest_gain = above_landing;
+    for (size_t k = landing + 1; k < rows.size(); ++k) {
+      CAPTURE(k);
+      CHECK(rows[k].total_energy <= E_landing + 1e-4 * peak_kinetic);
+      CHECK(rows[k].total_energy <= rows[k - 1].total_energy + 2e-5 * peak_kinetic);
+      above_landing = std::max(above_landing, rows[k].total_energy - E_landing);
+      largest_gain = std::max(largest_gain, rows[k].total_energy - rows[k - 1].total_energy);
     }
+    MESSAGE("newmark: peak kinetic energy " << peak_kinetic << " J; before landing within " << before_landing / peak_kinetic
+            << " of it of the start; landed at step " << landing + 1 << " with " << (E_landing - E0) / peak_kinetic
+            << " of it gained; after landing at most " << above_landing / peak_kinetic
+            << " of it above the energy at landing, largest gain in a step " << largest_gain / peak_kinetic);
     // It bounces: the momentum turns upward after landing.
     double highest_momentum = 0.0;
     for (size_t k = landing; k < rows.size(); ++k) highest_momentum = std::max(highest_momentum, rows[k].momentum.y());
