@@ -1,6 +1,11 @@
 // MPM runs end to end (issue 38): a moving boundary box carries the particles inside it on its
-// rigid motion while the rest deforms.
+// rigid motion while the rest deforms; the particle radius `nexdyn run` writes into its VTU frames
+// is 0.5 cbrt(|J| V0), and a rendered frame covers the pixels the cube's geometry predicts.
 #include "engine/mpm/mpm_simulation.hpp"
+#include "engine/render/frame_reader.hpp"
+#include "engine/render/png_file.hpp"
+#include "engine/render/render_command.hpp"
+#include "engine/render/view_file.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -9,9 +14,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <string>
 
 using namespace nexdyn;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -95,4 +103,126 @@ TEST_CASE("mpm boundary box moving with velocity or angular velocity carries the
     CHECK(free_displacement > 5e-3);
     CHECK(free_strain > 0.05);
   }
+}
+
+namespace {
+
+// A 10 cm cube of 512 particles (h 2.5 cm, 2 per cell per axis) thrown down and sideways onto a
+// plane with friction: it lands within a few steps, so its particles are squashed (J != 1) and
+// the plane, friction and (under generalized-alpha, the default) the particles' abar all carry
+// over from step to step.
+std::string thrown_cube_scene(int steps, int every, const std::string& integrator) {
+  return R"({"gravity": [0, -9.81, 0], "time": {"dt": 0.005, "steps": )" + std::to_string(steps) +
+         R"(, "integrator": ")" + integrator + R"("},
+    "mpm": {"grid_spacing": 0.025, "domain_min": [-0.2, -0.1, -0.2], "domain_max": [0.3, 0.3, 0.2]},
+    "materials": {"m": {"model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000}},
+    "bodies": [{"particles": {"box": {"size": [0.1, 0.1, 0.1], "per_cell": 2}}, "material": "m",
+                "translate": [0, 0.075, 0], "velocity": [1, -2, 0]}],
+    "contact": {"friction": 0.3}, "obstacles": [{"plane": {"point": [0, 0, 0], "normal": [0, 1, 0]}}],
+    "output": {"every": )" + std::to_string(every) + "}}";
+}
+
+int64_t pixels_differing(const Image& a, const Image& b) {
+  int64_t count = 0;
+  for (size_t p = 0; p < a.rgb.size(); p += 3)
+    count += a.rgb[p] != b.rgb[p] || a.rgb[p + 1] != b.rgb[p + 1] || a.rgb[p + 2] != b.rgb[p + 2];
+  return count;
+}
+
+}  // namespace
+
+TEST_CASE("mpm run: the VTU radius is 0.5 cbrt(|J| V0) before and after the cube is squashed") {
+  // The frames `nexdyn run` wrote, read back (engine/render/frame_reader.hpp), against the same
+  // scene stepped here: the points are the particles' positions, bit for bit, and each radius is
+  // half the edge of a cube of the particle's current volume |det F| V0 (frame_writer.cpp).
+  const fs::path dir = test::temp_dir("mpm_radius");
+  const fs::path file = test::write_text(dir / "cube.json", thrown_cube_scene(6, 3, "newmark"));
+  const test::CommandResult r = test::run_cli("run " + file.string() + " --quiet --out " + (dir / "out").string());
+  INFO(r.output);
+  REQUIRE(r.exit_code == 0);
+  const Scene scene = load_scene(file);
+  MpmSimulation simulation(scene);
+  const double V0 = std::pow(0.025 / 2, 3);  // (h / per_cell)^3
+  double largest_J_change = 0.0;
+  for (const int frame : {0, 3, 6}) {
+    CAPTURE(frame);
+    if (frame > 0) run_steps(simulation, 3);
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.vtu", frame);
+    const FrameData data = read_vtu_frame(dir / "out" / "frames" / name);
+    const Particles& now = simulation.state().particles;
+    REQUIRE(data.num_points() == now.size());
+    REQUIRE(data.radius.size() == static_cast<size_t>(now.size()));
+    CHECK(data.points == now.x);
+    double worst = 0.0, J_change = 0.0;
+    for (int64_t p = 0; p < now.size(); ++p) {
+      REQUIRE(now.volume0[p] == doctest::Approx(V0).epsilon(1e-12));
+      const double J = now.deformation(p).determinant();
+      const double expected = 0.5 * std::cbrt(std::abs(J) * now.volume0[p]);
+      worst = std::max(worst, std::abs(data.radius[p] - expected) / expected);
+      J_change = std::max(J_change, std::abs(J - 1.0));
+    }
+    MESSAGE("frame " << frame << ": largest |J - 1| " << J_change << ", largest relative radius error " << worst);
+    CHECK(worst < 1e-14);
+    if (frame == 0) CHECK(J_change == 0.0);  // rest shape: every radius is 0.5 cbrt(V0) = h / 4
+    largest_J_change = std::max(largest_J_change, J_change);
+  }
+  // The check would not see a radius that ignores J unless J moved: the landing squashed the cube.
+  CHECK(largest_J_change > 0.01);
+}
+
+TEST_CASE("mpm render: the particles of a frame cover the pixels their icosahedra predict") {
+  // Frame 0 of a run (the cube at rest shape, centre (0, 0.075, 0), 8 x 8 x 8 particles 12.5 mm
+  // apart), read back and drawn by render_frame (one icosahedron of circumradius `radius` per
+  // particle, engine/render/render_command.cpp) from 100 m away on the cube's z axis with a
+  // 0.1 deg field of view: nearly orthographic (the cube's depth is 0.1% of the distance), so the
+  // 8 particles of a column project onto one another, and the picture shows 8 x 8 columns.
+  // Along z an icosahedron of that orientation projects to a hexagon of area 2 g^3 / (1 + g^2)
+  // R^2 = 2.342 R^2 (g the golden ratio), 0.585 of the 2R x 2R square each particle has in the
+  // cube's face, and the hexagons of neighbours do not overlap (half-width 0.851 R). So the
+  // particles cover 64 hexagons, 0.585 of the cube's projected face. Measured: 0.991 of 64
+  // hexagons; at sizes 280 to 400 pixels and from 400 m 0.990 to 1.006 (where the hexagons'
+  // edges fall between pixel centres), from 20 m up to 1.02 (perspective: the back particles of
+  // a column peek out beside the front one). A radius 2% off changes the area by 4%. The same
+  // frame with no particles gives the background; no planes are drawn (their shadows would count
+  // too).
+  const fs::path dir = test::temp_dir("mpm_render");
+  const fs::path file = test::write_text(dir / "cube.json", thrown_cube_scene(1, 1, "newmark"));
+  const fs::path out = dir / "out";
+  REQUIRE(test::run_cli("run " + file.string() + " --quiet --out " + out.string()).exit_code == 0);
+  const FrameData frame = read_vtu_frame(out / "frames" / "frame_000000.vtu");
+  REQUIRE(frame.num_points() == 512);
+  const SceneView view = read_view(out);
+
+  const int size = 300;
+  const double distance = 100.0, fov = 0.1, R = 0.0125 / 2;
+  const Eigen::Vector3d centre(0, 0.075, 0);
+  RenderOptions options;
+  options.run_dir = out;
+  options.width = options.height = size;
+  options.camera = RenderCamera{centre + Eigen::Vector3d(0, 0, distance), centre, Eigen::Vector3d::UnitY(), fov};
+  // `nexdyn render` with this camera draws what render_frame does (with the scene's plane).
+  {
+    char camera[128];
+    std::snprintf(camera, sizeof camera, "0,0.075,%g,0,0.075,0,%g", distance, fov);
+    const test::CommandResult r = test::run_cli("render " + out.string() + " --frame 0 --size 300x300 --camera " + camera);
+    INFO(r.output);
+    REQUIRE(r.exit_code == 0);
+    const RenderSetting setting = choose_render_setting(options, view, frame, frame);
+    CHECK(read_png(out / "render" / "frame_000000.png").rgb == render_frame(frame, view, setting, options, "f").rgb);
+  }
+  RenderSetting setting = choose_render_setting(options, view, frame, frame);
+  setting.planes.clear();
+  FrameData empty;
+  const int64_t covered =
+      pixels_differing(render_frame(frame, view, setting, options, "f"), render_frame(empty, view, setting, options, "e"));
+  // Pixels per metre at the cube's front face, 99.95 m from the eye.
+  const double scale = size / (2.0 * std::tan(0.5 * fov * M_PI / 180.0) * (distance - 0.05));
+  const double face = std::pow(0.1 * scale, 2);
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  const double hexagon = 2.0 * g * g * g / (1.0 + g * g) * std::pow(R * scale, 2);
+  MESSAGE("particles cover " << covered << " pixels; the cube's face projects to " << face << ", 64 hexagons to "
+                             << 64 * hexagon << " (ratio " << covered / (64 * hexagon) << ")");
+  CHECK(covered < face);
+  CHECK(static_cast<double>(covered) == test::relative(64 * hexagon, 0.03));
 }
