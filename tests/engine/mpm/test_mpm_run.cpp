@@ -1,6 +1,8 @@
 // MPM runs end to end (issue 38): a moving boundary box carries the particles inside it on its
 // rigid motion while the rest deforms; the particle radius `nexdyn run` writes into its VTU frames
-// is 0.5 cbrt(|J| V0), and a rendered frame covers the pixels the cube's geometry predicts.
+// is 0.5 cbrt(|J| V0), and a rendered frame covers the pixels the cube's geometry predicts; a
+// run killed or stopped mid-way and resumed writes the same stats.csv and frames as one never
+// stopped.
 #include "engine/mpm/mpm_simulation.hpp"
 #include "engine/render/frame_reader.hpp"
 #include "engine/render/png_file.hpp"
@@ -12,11 +14,23 @@
 
 #include <Eigen/Geometry>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
 #include <string>
+#include <vector>
+
+extern char** environ;
 
 using namespace nexdyn;
 namespace fs = std::filesystem;
@@ -225,4 +239,131 @@ TEST_CASE("mpm render: the particles of a frame cover the pixels their icosahedr
                              << 64 * hexagon << " (ratio " << covered / (64 * hexagon) << ")");
   CHECK(covered < face);
   CHECK(static_cast<double>(covered) == test::relative(64 * hexagon, 0.03));
+}
+
+namespace {
+
+// nexdyn with these arguments as a child process, its output thrown away; with a `signal_at`
+// (SIGNAL@STEP[:PLACE], engine/run.hpp) the run sends itself that signal there. As in
+// tests/engine/cli/test_resume_cli.cpp.
+pid_t spawn_cli(const std::vector<std::string>& args, const std::string& signal_at = "") {
+  std::vector<std::string> all = {NEXDYN_CLI_PATH};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const std::string hook_prefix = std::string(kTestSignalVariable) + "=";
+  std::string hook = hook_prefix + signal_at;
+  std::vector<char*> env;
+  for (char** e = environ; *e; ++e)
+    if (std::string(*e).rfind(hook_prefix, 0) != 0) env.push_back(*e);
+  if (!signal_at.empty()) env.push_back(hook.data());
+  env.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = -1;
+  const int error = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), env.data());
+  posix_spawn_file_actions_destroy(&actions);
+  REQUIRE(error == 0);
+  return pid;
+}
+
+std::string read_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// How the child ended: "exit N" or "signal N".
+std::string wait_child(pid_t pid) {
+  int status = 0;
+  REQUIRE(waitpid(pid, &status, 0) == pid);
+  if (WIFEXITED(status)) return "exit " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) return "signal " + std::to_string(WTERMSIG(status));
+  return "unknown";
+}
+
+// stats.csv without wall_seconds, scene.pvd and every frame, by name.
+std::map<std::string, std::string> run_outputs(const fs::path& out) {
+  std::map<std::string, std::string> files;
+  std::string stats;
+  for (const std::string& row : test::read_lines(out / "stats.csv")) stats += test::without_wall_seconds(row) + "\n";
+  files["stats.csv"] = stats;
+  files["scene.pvd"] = read_bytes(out / "scene.pvd");
+  for (const auto& entry : fs::directory_iterator(out / "frames"))
+    files["frames/" + entry.path().filename().string()] = read_bytes(entry.path());
+  return files;
+}
+
+std::vector<int64_t> checkpoint_steps(const fs::path& out) {
+  std::vector<int64_t> steps;
+  std::error_code ec;
+  if (!fs::is_directory(out / "checkpoints", ec)) return steps;
+  for (const auto& entry : fs::directory_iterator(out / "checkpoints", ec)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.path().extension() == ".ckpt" && name.rfind("checkpoint_", 0) == 0)
+      steps.push_back(std::stoll(name.substr(11, 9)));
+  }
+  std::sort(steps.begin(), steps.end());
+  return steps;
+}
+
+int64_t data_rows(const fs::path& file) { return static_cast<int64_t>(test::read_lines(file).size()) - 1; }
+
+}  // namespace
+
+TEST_CASE("mpm kill and resume: a particle run killed or stopped at chosen steps writes what an unstopped run does") {
+  // The thrown cube (generalized-alpha, a plane with friction) for 20 steps, a frame every 4 and
+  // a checkpoint every 5 steps, run once straight through and once stopped again and again:
+  // SIGKILL as step 3 begins (no checkpoint yet: run afresh), SIGKILL just after checkpoint 10 is
+  // written, SIGKILL after the stats row of step 13, SIGTERM as step 16 begins (the run ends
+  // that step, writes its checkpoint and exits with 128 + 15), SIGINT after the row of step 18;
+  // each time resumed from the newest checkpoint. The stopped run must end with the same
+  // stats.csv (but for wall_seconds), scene.pvd and frame files, byte for byte: the MPM
+  // checkpoint must carry every particle's x, v, F, C and abar, and the energy the next row's
+  // integrator_energy is measured from.
+  const fs::path dir = test::temp_dir("mpm_kill_resume");
+  const fs::path file = test::write_text(dir / "cube.json", thrown_cube_scene(20, 4, "generalized_alpha"));
+  const fs::path full = dir / "full", stopped = dir / "stopped";
+  auto run_into = [&](const fs::path& out) {
+    return std::vector<std::string>{"run", file.string(), "--checkpoint-every", "5", "--quiet", "--out", out.string()};
+  };
+  const std::vector<std::string> resume = {"resume", stopped.string(), "--quiet"};
+  REQUIRE(wait_child(spawn_cli(run_into(full))) == "exit 0");
+  REQUIRE(data_rows(full / "stats.csv") == 20);
+
+  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@3")) == "signal " + std::to_string(SIGKILL));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 2);
+  CHECK(checkpoint_steps(stopped).empty());
+
+  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@10:checkpoint")) == "signal " + std::to_string(SIGKILL));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 10);
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{5, 10});
+
+  CHECK(wait_child(spawn_cli(resume, "KILL@13:row")) == "signal " + std::to_string(SIGKILL));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 13);
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{5, 10});
+
+  CHECK(wait_child(spawn_cli(resume, "TERM@16")) == "exit " + std::to_string(128 + SIGTERM));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 16);
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{15, 16});
+
+  CHECK(wait_child(spawn_cli(resume, "INT@18:row")) == "exit " + std::to_string(128 + SIGINT));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 18);
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{16, 18});
+
+  REQUIRE(wait_child(spawn_cli(resume)) == "exit 0");
+  REQUIRE(fs::exists(stopped / "stats.csv"));
+  CHECK_FALSE(fs::exists(stopped / "stats.partial.csv"));
+  CHECK(fs::is_empty(stopped / "checkpoints"));
+  const auto expected = run_outputs(full), got = run_outputs(stopped);
+  CHECK(expected.size() == 2 + 6);  // stats.csv, scene.pvd and frames 0, 4, ..., 20
+  CHECK(got.size() == expected.size());
+  for (const auto& [name, bytes] : expected) {
+    CAPTURE(name);
+    const auto it = got.find(name);
+    REQUIRE(it != got.end());
+    CHECK(it->second == bytes);
+  }
 }
