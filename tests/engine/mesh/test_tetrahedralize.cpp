@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <set>
+#include <vector>
 
 namespace nexdyn {
 namespace {
@@ -178,6 +179,20 @@ TEST_CASE("surface bodies: the mesh cache is reused while the file and settings 
   const SurfaceBody other = surface_body(surface, finer, cache);
   CHECK_FALSE(other.reused);
   CHECK(other.cache_file != first.cache_file);
+  // Every setting is part of the key: another max_volume or min_quality is another file, which a
+  // second call with the same settings reuses (the tets differ, so a shared file would be wrong).
+  TetrahedralizeSettings smaller = {};
+  smaller.max_volume = 0.01;
+  TetrahedralizeSettings rougher = {};
+  rougher.min_quality = 0.2;
+  std::vector<fs::path> files = {first.cache_file, other.cache_file};
+  for (const TetrahedralizeSettings& settings : {smaller, rougher}) {
+    const SurfaceBody made = surface_body(surface, settings, cache);
+    CHECK_FALSE(made.reused);
+    CHECK(std::find(files.begin(), files.end(), made.cache_file) == files.end());
+    files.push_back(made.cache_file);
+    CHECK(surface_body(surface, settings, cache).reused);
+  }
   // Another surface under the same name: another file.
   test::write_text(surface, read_mesh_file(surface) + "# edited\n");
   const SurfaceBody edited = surface_body(surface, {}, cache);
