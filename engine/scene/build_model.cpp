@@ -45,7 +45,8 @@ struct BodySpec {
   int32_t material = 0;
   Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();  // rotate * scale
   Eigen::Vector3d translate = Eigen::Vector3d::Zero();   // [m]
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();    // [m/s]
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();    // [m/s] of the centre of mass
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  // [rad/s] about the centre of mass
   std::array<int64_t, 3> count = {1, 1, 1};              // copies along x, y, z
   Eigen::Vector3d spacing = Eigen::Vector3d::Zero();     // [m] between copies
 };
@@ -142,8 +143,8 @@ void read_array(const json& a, const Where& wa, BodySpec& body) {
 // that the body and all its copies fit in the scene's limits next to what `model` already holds.
 BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir, const MaterialIds& material_ids,
                    MeshCache& cache, const Model& model, const SceneLimits& limits) {
-  check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "array",
-                    "tetrahedralize"});
+  check_keys(j, w, {"mesh", "box", "material", "translate", "rotate_deg", "scale", "velocity", "angular_velocity",
+                    "array", "tetrahedralize"});
   if (j.contains("mesh") == j.contains("box")) w.fail("give exactly one of \"mesh\" and \"box\"");
   const BodyMesh& mesh = j.contains("mesh") ? read_mesh_entry(j, w, scene_dir, cache)
                                             : read_box_entry(j["box"], w["box"], cache, model, limits);
@@ -156,6 +157,7 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir, con
   body.linear = transform.linear;
   body.translate = transform.translate;
   if (j.contains("velocity")) body.velocity = vec3(j["velocity"], w["velocity"]);
+  if (j.contains("angular_velocity")) body.angular_velocity = vec3(j["angular_velocity"], w["angular_velocity"]);
   if (j.contains("array")) read_array(j["array"], w["array"], body);
   const int64_t copies = body.count[0] * body.count[1] * body.count[2];
   const int64_t vertices = body.mesh->num_vertices(), tets = body.mesh->num_tets();
@@ -203,6 +205,22 @@ BodySpec read_body(const json& j, const Where& w, const fs::path& scene_dir, con
   return "";
 }
 
+// Adds omega x (x - c) to the velocities of `count` vertices from `first`, c their centre of
+// mass. The lumped masses give the exact centre: each tet puts a quarter of its mass on each
+// corner, and the mean of the corners is the tet's centroid.
+void spin_about_centre_of_mass(const Eigen::Vector3d& omega, int32_t first, int32_t count, const Model& model,
+                               State& state) {
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  double mass = 0.0;
+  for (int32_t v = first; v < first + count; ++v) {
+    moment += model.mass[v] * Eigen::Vector3d::Map(&model.rest_positions[3 * v]);
+    mass += model.mass[v];
+  }
+  const Eigen::Vector3d centre = moment / mass;
+  for (int32_t v = first; v < first + count; ++v)
+    Eigen::Vector3d::Map(&state.v[3 * v]) += omega.cross(Eigen::Vector3d::Map(&model.rest_positions[3 * v]) - centre);
+}
+
 // Appends one transformed copy of a body to the model and the initial state. Returns what is
 // wrong with the copy, empty when nothing is: a transform can overflow a position to infinity
 // (translate 1e308 plus an array spacing) or flatten tets that were fine in the mesh's own frame
@@ -239,6 +257,8 @@ std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int
     model.dirichlet.push_back(-1);
   }
   if (std::string problem = append_tets(mesh, base, spec.material, model); !problem.empty()) return problem;
+  if (!spec.angular_velocity.isZero())
+    spin_about_centre_of_mass(spec.angular_velocity, base, mesh.num_vertices(), model, state);
   for (int32_t i : surface.triangles) model.surface_triangles.push_back(base + i);
   for (int32_t i : surface.edges) model.surface_edges.push_back(base + i);
   for (int32_t i : surface.vertices) model.surface_vertices.push_back(base + i);

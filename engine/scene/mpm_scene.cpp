@@ -113,7 +113,7 @@ void read_particle_body(const json& j, const Where& w, const fs::path& scene_dir
   if (j.is_object() && (j.contains("mesh") || j.contains("box")))
     w.fail("a scene with particle bodies cannot also have tet bodies (\"mesh\" or \"box\"): MPM and FEM bodies "
            "do not meet yet");
-  check_keys(j, w, {"particles", "material", "translate", "rotate_deg", "scale", "velocity"});
+  check_keys(j, w, {"particles", "material", "translate", "rotate_deg", "scale", "velocity", "angular_velocity"});
   if (!j.contains("particles")) w.fail("missing key \"particles\"");
   if (!j.contains("material")) w.fail("missing key \"material\"");
   const int32_t material = material_id(j["material"], w["material"], material_ids);
@@ -130,6 +130,25 @@ void read_particle_body(const json& j, const Where& w, const fs::path& scene_dir
     sample_box(p["box"], wp["box"], transform, mpm.grid_spacing, density, velocity, material, limits, mpm.initial);
   } else {
     sample_mesh(p, wp, scene_dir, transform, density, velocity, material, limits, mpm.initial);
+  }
+  if (j.contains("angular_velocity")) {
+    // Spun about the body's centre of mass: v_p += omega x (x_p - c), and the affine velocity
+    // C_p = [omega]x, the gradient of that rigid velocity field (which the grid then holds exactly).
+    const Eigen::Vector3d omega = vec3(j["angular_velocity"], w["angular_velocity"]);
+    Particles& P = mpm.initial;
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    double mass = 0.0;
+    for (int64_t q = before; q < P.size(); ++q) {
+      moment += P.mass[q] * P.position(q);
+      mass += P.mass[q];
+    }
+    const Eigen::Vector3d centre = moment / mass;
+    Eigen::Matrix3d spin;
+    spin << 0.0, -omega.z(), omega.y(), omega.z(), 0.0, -omega.x(), -omega.y(), omega.x(), 0.0;
+    for (int64_t q = before; q < P.size(); ++q) {
+      Eigen::Vector3d::Map(&P.v[3 * q]) += omega.cross(P.position(q) - centre);
+      Eigen::Matrix3d::Map(&P.C[9 * q]) = spin;
+    }
   }
   // Every particle's stencil must lie on the grid.
   const Grid grid = grid_geometry(mpm.grid_spacing, mpm.domain_min, mpm.domain_max);

@@ -7,6 +7,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -126,4 +127,35 @@ TEST_CASE("mpm run writes point-cloud frames, scene.pvd and stats.csv, and rende
   INFO(picture.output);
   CHECK(picture.exit_code == 0);
   CHECK(std::filesystem::file_size(dir / "out" / "render" / "frame_000003.png") > 100);
+}
+
+TEST_CASE("mpm scene: angular_velocity spins a particle body about its centre of mass, with C = [omega]x") {
+  const Eigen::Vector3d v0(1, 0, 0), omega(0.5, -1, 2);
+  const Scene s = test::scene_from_json(
+      scene(kGrid, R"({"particles": {"box": {"size": [0.2, 0.1, 0.3], "per_cell": 2}}, "material": "m",
+                       "translate": [0.05, 0.3, 0], "rotate_deg": [0, 30, 0], "velocity": [1, 0, 0],
+                       "angular_velocity": [0.5, -1, 2]})"),
+      "mpm_spin");
+  const Particles& P = s.mpm->initial;
+  double M = 0.0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero(), p = Eigen::Vector3d::Zero(), L = Eigen::Vector3d::Zero();
+  for (int64_t q = 0; q < P.size(); ++q) {
+    M += P.mass[q];
+    c += P.mass[q] * P.position(q);
+  }
+  c /= M;
+  Eigen::Matrix3d I = Eigen::Matrix3d::Zero(), spin;
+  spin << 0, -omega.z(), omega.y(), omega.z(), 0, -omega.x(), -omega.y(), omega.x(), 0;
+  double largest_C_error = 0.0;
+  for (int64_t q = 0; q < P.size(); ++q) {
+    const Eigen::Vector3d r = P.position(q) - c;
+    I += P.mass[q] * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
+    p += P.mass[q] * P.velocity(q);
+    L += P.mass[q] * r.cross(P.velocity(q));
+    largest_C_error = std::max(largest_C_error, (P.affine(q) - spin).norm());
+  }
+  CHECK((p - M * v0).norm() <= 1e-13 * M);
+  CHECK((L - I * omega).norm() <= 1e-12 * (I * omega).norm());
+  // C is the gradient of the rigid field v0 + omega x (x - c): [omega]x, for every particle.
+  CHECK(largest_C_error == 0.0);
 }
