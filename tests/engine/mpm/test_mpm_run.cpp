@@ -8,6 +8,7 @@
 #include "engine/render/png_file.hpp"
 #include "engine/render/render_command.hpp"
 #include "engine/render/view_file.hpp"
+#include "tests/engine/cli/child_process.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -30,7 +31,6 @@
 #include <string>
 #include <vector>
 
-extern char** environ;
 
 using namespace nexdyn;
 namespace fs = std::filesystem;
@@ -250,58 +250,10 @@ TEST_CASE("mpm render: the particles of a frame cover the pixels their icosahedr
 
 namespace {
 
-// nexdyn with these arguments as a child process, its output thrown away; with a `signal_at`
-// (SIGNAL@STEP[:PLACE], engine/run.hpp) the run sends itself that signal there. As in
-// tests/engine/cli/test_resume_cli.cpp.
-pid_t spawn_cli(const std::vector<std::string>& args, const std::string& signal_at = "") {
-  std::vector<std::string> all = {NEXDYN_CLI_PATH};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  const std::string hook_prefix = std::string(kTestSignalVariable) + "=";
-  std::string hook = hook_prefix + signal_at;
-  std::vector<char*> env;
-  for (char** e = environ; *e; ++e)
-    if (std::string(*e).rfind(hook_prefix, 0) != 0) env.push_back(*e);
-  if (!signal_at.empty()) env.push_back(hook.data());
-  env.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-  pid_t pid = -1;
-  const int error = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), env.data());
-  posix_spawn_file_actions_destroy(&actions);
-  REQUIRE(error == 0);
-  return pid;
-}
-
-std::string read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-// How the child ended: "exit N" or "signal N".
-std::string wait_child(pid_t pid) {
-  int status = 0;
-  REQUIRE(waitpid(pid, &status, 0) == pid);
-  if (WIFEXITED(status)) return "exit " + std::to_string(WEXITSTATUS(status));
-  if (WIFSIGNALED(status)) return "signal " + std::to_string(WTERMSIG(status));
-  return "unknown";
-}
-
-// stats.csv without wall_seconds, scene.pvd and every frame, by name.
-std::map<std::string, std::string> run_outputs(const fs::path& out) {
-  std::map<std::string, std::string> files;
-  std::string stats;
-  for (const std::string& row : test::read_lines(out / "stats.csv")) stats += test::without_wall_seconds(row) + "\n";
-  files["stats.csv"] = stats;
-  files["scene.pvd"] = read_bytes(out / "scene.pvd");
-  for (const auto& entry : fs::directory_iterator(out / "frames"))
-    files["frames/" + entry.path().filename().string()] = read_bytes(entry.path());
-  return files;
-}
+using test::read_bytes;
+using test::run_outputs;
+using test::spawn_cli;
+using test::wait_child;
 
 std::vector<int64_t> checkpoint_steps(const fs::path& out) {
   std::vector<int64_t> steps;
@@ -337,30 +289,30 @@ TEST_CASE("mpm kill and resume: a particle run killed or stopped at chosen steps
     return std::vector<std::string>{"run", file.string(), "--checkpoint-every", "5", "--quiet", "--out", out.string()};
   };
   const std::vector<std::string> resume = {"resume", stopped.string(), "--quiet"};
-  REQUIRE(wait_child(spawn_cli(run_into(full))) == "exit 0");
+  REQUIRE(wait_child(spawn_cli(run_into(full))).exited(0));
   REQUIRE(data_rows(full / "stats.csv") == 20);
 
-  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@3")) == "signal " + std::to_string(SIGKILL));
+  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@3")).killed_by(SIGKILL));
   CHECK(data_rows(stopped / "stats.partial.csv") == 2);
   CHECK(checkpoint_steps(stopped).empty());
 
-  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@10:checkpoint")) == "signal " + std::to_string(SIGKILL));
+  CHECK(wait_child(spawn_cli(run_into(stopped), "KILL@10:checkpoint")).killed_by(SIGKILL));
   CHECK(data_rows(stopped / "stats.partial.csv") == 10);
   CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{5, 10});
 
-  CHECK(wait_child(spawn_cli(resume, "KILL@13:row")) == "signal " + std::to_string(SIGKILL));
+  CHECK(wait_child(spawn_cli(resume, "KILL@13:row")).killed_by(SIGKILL));
   CHECK(data_rows(stopped / "stats.partial.csv") == 13);
   CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{5, 10});
 
-  CHECK(wait_child(spawn_cli(resume, "TERM@16")) == "exit " + std::to_string(128 + SIGTERM));
+  CHECK(wait_child(spawn_cli(resume, "TERM@16")).exited(128 + SIGTERM));
   CHECK(data_rows(stopped / "stats.partial.csv") == 16);
   CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{15, 16});
 
-  CHECK(wait_child(spawn_cli(resume, "INT@18:row")) == "exit " + std::to_string(128 + SIGINT));
+  CHECK(wait_child(spawn_cli(resume, "INT@18:row")).exited(128 + SIGINT));
   CHECK(data_rows(stopped / "stats.partial.csv") == 18);
   CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{16, 18});
 
-  REQUIRE(wait_child(spawn_cli(resume)) == "exit 0");
+  REQUIRE(wait_child(spawn_cli(resume)).exited(0));
   REQUIRE(fs::exists(stopped / "stats.csv"));
   CHECK_FALSE(fs::exists(stopped / "stats.partial.csv"));
   CHECK(fs::is_empty(stopped / "checkpoints"));
