@@ -6,9 +6,10 @@
 #                       frame and plot its stats.csv
 #   ./build.sh test     build, then run the whole test suite with CTest
 #   ./build.sh bench    build, then run the benchmarks (slow; see docs/performance.md)
-#   ./build.sh sanitize the test suite (but its longest runs and the thread tests) under
-#                       AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/), then the
-#                       thread tests under ThreadSanitizer (build-tsan/)
+#   ./build.sh sanitize the test suite (but its longest runs and the thread tests) on an engine
+#                       built with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/,
+#                       linking the test files build/ compiled), then the thread tests under
+#                       ThreadSanitizer (build-tsan/)
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -35,15 +36,15 @@ jobs=$(nproc)
 # What each mode needs: the demo the program, the tests the program and the test suite (the
 # benchmarks' build takes a fifth of a full one), sanitize only its own two builds, everything
 # else everything.
+# The sanitizer pass links the plain build's test objects (tests/CMakeLists.txt), so it builds
+# them first (nothing to do after `./build.sh test`).
 case "${1:-build}" in
   demo) targets=(--target nexdyn) ;;
-  test) targets=(--target nexdyn nexdyn_tests) ;;
+  test|sanitize) targets=(--target nexdyn nexdyn_tests) ;;
   *) targets=() ;;
 esac
-if [[ "${1:-build}" != sanitize ]]; then
-  cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build_dir" -j "$jobs" "${targets[@]}"
-fi
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$build_dir" -j "$jobs" "${targets[@]}"
 
 case "${1:-build}" in
   build) ;;
@@ -61,7 +62,8 @@ case "${1:-build}" in
   sanitize)
     # Every sanitizer report is fatal (-fno-sanitize-recover=all, halt_on_error): it fails its test.
     cmake -S . -B "$build_dir-asan" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-          -DNEXDYN_SANITIZE=address,undefined -DNEXDYN_BENCH=OFF >/dev/null
+          -DNEXDYN_SANITIZE=address,undefined -DNEXDYN_BENCH=OFF \
+          -DNEXDYN_TEST_OBJECTS_FROM="$(realpath "$build_dir")" >/dev/null
     cmake --build "$build_dir-asan" -j "$jobs"
     ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \

@@ -67,10 +67,24 @@ struct CommandResult {
   std::string output;  // stdout and stderr together
 };
 
+// The nexdyn program of this test program's own build: BUILD/nexdyn beside BUILD/tests/. Found at
+// run time, since the AddressSanitizer build links the test files as the plain build compiled
+// them (tests/CMakeLists.txt), with the plain build's path in NEXDYN_CLI_PATH; that path is the
+// fallback.
+inline std::string cli_path() {
+  static const std::string path = [] {
+    std::error_code ec;
+    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    const std::filesystem::path beside = self.parent_path().parent_path() / "nexdyn";
+    return !ec && std::filesystem::exists(beside, ec) ? beside.string() : std::string(NEXDYN_CLI_PATH);
+  }();
+  return path;
+}
+
 // Runs the nexdyn binary with the given argument string, with `env` ("NAME=VALUE ...") added to
 // its environment.
 inline CommandResult run_cli_with_env(const std::string& env, const std::string& args) {
-  const std::string cmd = env + " " + std::string(NEXDYN_CLI_PATH) + " " + args + " 2>&1";
+  const std::string cmd = env + " " + cli_path() + " " + args + " 2>&1";
   CommandResult result;
   FILE* pipe = popen(cmd.c_str(), "r");
   if (!pipe) return result;

@@ -27,7 +27,7 @@ namespace nexdyn::test {
 // nexdyn with these arguments as a child process, its output thrown away; with a `signal_at`
 // (SIGNAL@STEP[:PLACE], engine/run.hpp) the run sends itself that signal there.
 inline pid_t spawn_cli(const std::vector<std::string>& args, const std::string& signal_at = "") {
-  std::vector<std::string> all = {NEXDYN_CLI_PATH};
+  std::vector<std::string> all = {cli_path()};
   all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : all) argv.push_back(a.data());

@@ -34,7 +34,7 @@ struct Output {
 Output run_nexdyn(const std::string& args, const std::string& environment = "") {
   const fs::path err_file = test::temp_dir("plot_stderr") / "stderr.txt";
   const std::string command =
-      environment + " " + NEXDYN_CLI_PATH + " " + args + " 2>" + err_file.string();
+      environment + " " + test::cli_path() + " " + args + " 2>" + err_file.string();
   Output result;
   FILE* pipe = popen(command.c_str(), "r");
   REQUIRE(pipe);
