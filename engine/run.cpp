@@ -52,7 +52,7 @@ void override_integrator(Scene& scene, const std::string& name, double rho_inf) 
 
 std::string stats_header(const Scene& scene) {
   return std::string(kStatsHeader) + (scene.model.joints.empty() ? "" : ",joint_violation") + ",retries" +
-         kBalanceColumns;
+         kBalanceColumns + kAngularMomentumColumns;
 }
 
 std::string stats_row(const StepStats& s) {
@@ -72,6 +72,9 @@ std::string stats_row(const StepStats& s) {
   const EnergyBalance& b = s.balance;
   std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g,%.17g,%d,%d,%.17g", b.boundary_work, b.friction_dissipated,
                 b.kappa_energy, b.integrator_energy, s.guarded_steps, s.sleeping_bodies, s.damping_dissipated);
+  row += buf;
+  std::snprintf(buf, sizeof(buf), ",%.17g,%.17g,%.17g", s.angular_momentum.x(), s.angular_momentum.y(),
+                s.angular_momentum.z());
   return row + buf;
 }
 
@@ -232,6 +235,12 @@ std::string frame_vtu(const Scene& scene, const MpmSimulation& simulation) {
 std::string frame_obj(const Scene&, const MpmSimulation&) {
   throw std::logic_error("MPM scenes have no surface to write (the scene reader refuses output.obj)");
 }
+std::string frame_bodies(const Scene& scene, const Simulation& simulation) {
+  return bodies_document(scene.model, simulation.state().x, simulation.state().v);
+}
+std::string frame_bodies(const Scene&, const MpmSimulation&) {
+  throw std::logic_error("MPM scenes have no bodies file (the scene reader refuses output.bodies)");
+}
 
 // Steps `simulation` from record.steps_done + 1 to record.total_steps, writing rows, frames and
 // checkpoints into `out` (and frame 0 first on a fresh run; a resumed one has it in its record).
@@ -249,6 +258,7 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Sim& simulation, R
       write_file_atomically(out / "scene.pvd", pvd_document(record.pvd_frames));
     }
     if (scene.output.obj) write_file_atomically(frames_dir / frame_file_name(frame, "obj"), frame_obj(scene, simulation));
+    if (scene.output.bodies) write_file_atomically(frames_dir / bodies_file_name(frame), frame_bodies(scene, simulation));
   };
 
   RunSummary summary;

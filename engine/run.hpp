@@ -48,6 +48,9 @@ inline constexpr const char* kStatsHeader =
 inline constexpr const char* kBalanceColumns =
     ",boundary_work,friction_dissipated,kappa_energy,integrator_energy,guarded_steps,sleeping_bodies,"
     "damping_dissipated";
+// The angular momentum about the origin (issue 40), after the balance: sum m x cross v over the
+// vertices, with each particle's APIC spin for particle bodies.
+inline constexpr const char* kAngularMomentumColumns = ",angular_momentum_x,angular_momentum_y,angular_momentum_z";
 
 // timings.csv: per step, the wall time of each phase (engine/step_profile.hpp, exclusive), of
 // the rest of the step, of writing its stats row and frames, and the total, in milliseconds.

@@ -151,10 +151,12 @@ class Simulation {
   // energy of the motion x_old -> x_new to balance_.
   void account_energy(const std::vector<double>& x_old, const std::vector<double>& x_new, double kappa_before,
                       double dt);
-  // Kinetic and gravity energy and momentum of state_, summed over the vertices in order.
+  // Kinetic and gravity energy, momentum and angular momentum (about the origin) of state_, summed
+  // over the vertices in order.
   struct MotionSums {
     double kinetic = 0.0, gravity = 0.0;
     Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
   };
   MotionSums motion_sums() const;
   // Total energy of state_ (stats.csv's total_energy), its part in motion (|kinetic + elastic +

@@ -50,15 +50,17 @@ Simulation::MotionSums Simulation::motion_sums() const {
   for (int32_t i = 0; i < model_.num_vertices; ++i) {
     const double m = model_.mass[i];
     const Eigen::Vector3d vi = Eigen::Vector3d::Map(&state_.v[3 * i]);
+    const Eigen::Vector3d xi = Eigen::Vector3d::Map(&state_.x[3 * i]);
     sums.kinetic += 0.5 * m * vi.squaredNorm();
-    sums.gravity -= m * model_.gravity.dot(Eigen::Vector3d::Map(&state_.x[3 * i]));
+    sums.gravity -= m * model_.gravity.dot(xi);
     sums.momentum += m * vi;
+    sums.angular_momentum += m * xi.cross(vi);
   }
   return sums;
 }
 
 Simulation::Energies Simulation::energies_now() const {
-  const auto [kinetic, gravity, momentum] = motion_sums();
+  const auto [kinetic, gravity, momentum, angular_momentum] = motion_sums();
   double barrier = 0.0;
   if (contact_ && potential_.barrier_stiffness() > 0.0)
     barrier = potential_.barrier_stiffness() * contact_->energy(state_.x.data());
@@ -95,7 +97,7 @@ bool Simulation::guard_energy(const EnergyBalance& balance_before) {
 }
 
 void Simulation::measure_motion(StepStats& stats) const {
-  const auto [kinetic, gravity, momentum] = motion_sums();
+  const auto [kinetic, gravity, momentum, angular_momentum] = motion_sums();
   stats.kinetic_energy = kinetic;
   stats.elastic_energy = elastic_.energy(state_.x.data());
   stats.gravity_energy = gravity;
@@ -105,6 +107,7 @@ void Simulation::measure_motion(StepStats& stats) const {
   stats.total_energy = kinetic + stats.elastic_energy + gravity;
   if (!joints_.empty()) stats.joint_violation = joints_.max_violation(state_.x.data());
   stats.momentum = momentum;
+  stats.angular_momentum = angular_momentum;
 }
 
 namespace {

@@ -108,6 +108,9 @@ struct StepStats {
   int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
   int32_t sleeping_bodies = 0;  // bodies asleep at the end of the step (engine/sleeping.hpp)
   double damping_dissipated = 0.0;  // [J] taken out by Rayleigh damping since the start
+  // [kg m^2/s] about the origin: sum m x cross v over the vertices (lumped masses); for particles
+  // each particle's APIC spin as well (engine/mpm/particles.hpp). The last columns.
+  Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
 };
 
 }  // namespace nexdyn

@@ -92,6 +92,7 @@ void MpmSimulation::measure(StepStats& stats) const {
   stats.barrier_energy = 0.0;
   stats.total_energy = stats.kinetic_energy + stats.elastic_energy + stats.gravity_energy;
   stats.momentum = total_momentum(P);
+  stats.angular_momentum = total_angular_momentum(P, model_.grid_spacing);
   stats.contacts = 0;
   stats.min_distance = std::numeric_limits<double>::infinity();
   for (int64_t p = 0; p < n; ++p)

@@ -19,6 +19,33 @@ std::string frame_file_name(int64_t frame, const char* extension) {
   return buf;
 }
 
+std::string bodies_file_name(int64_t frame) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "bodies_%06lld.csv", static_cast<long long>(frame));
+  return buf;
+}
+
+std::string bodies_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v) {
+  std::string text = std::string(kBodiesHeader) + "\n";
+  char buf[512];
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    const BodyRange& body = model.bodies[b];
+    if (body.obstacle) continue;
+    double mass = 0.0;
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero(), momentum = Eigen::Vector3d::Zero();
+    for (int32_t i = body.vertex_begin; i < body.vertex_begin + body.vertex_count; ++i) {
+      mass += model.mass[i];
+      moment += model.mass[i] * Eigen::Vector3d::Map(&x[3 * i]);
+      momentum += model.mass[i] * Eigen::Vector3d::Map(&v[3 * i]);
+    }
+    const Eigen::Vector3d com = moment / mass, velocity = momentum / mass;
+    std::snprintf(buf, sizeof(buf), "%zu,tets,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,,,,,,,,,,,,\n", b, mass,
+                  com.x(), com.y(), com.z(), velocity.x(), velocity.y(), velocity.z());
+    text += buf;
+  }
+  return text;
+}
+
 namespace {
 // Appended raw binary data: each array is a UInt64 byte count followed by its bytes; a DataArray
 // refers to it by its offset from the start of the data block (after the '_').

@@ -203,6 +203,8 @@ void refuse_unsupported(const json& root, const Where& w, const Scene& scene) {
   if (scene.solver.method != SolverMethod::newton)
     w["solver"]["method"].fail("MPM scenes are solved by Newton (\"newton\")");
   if (scene.output.obj) w["output"]["formats"].fail("MPM frames are point clouds (.vtu): \"obj\" has no surface to write");
+  if (scene.output.bodies)
+    w["output"]["formats"].fail("MPM frames are point clouds (.vtu): \"bodies\" is for tet and affine bodies");
   for (const Material& m : scene.model.materials)
     if (m.damping.any()) w["materials"][m.name]["damping"].fail("damping is not supported with particle bodies");
 }

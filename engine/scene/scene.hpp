@@ -98,6 +98,7 @@ struct OutputSettings {
   int64_t checkpoint_every = 100;  // write a checkpoint every this many steps (0: only on a signal)
   bool vtu = true;
   bool obj = false;
+  bool bodies = false;  // frames/bodies_NNNNNN.csv: one row per body (engine/output/frame_writer.hpp)
   std::optional<CameraSettings> camera;
 };
 

@@ -232,13 +232,14 @@ void read_output(const json& j, const Where& w, OutputSettings& output) {
     output.checkpoint_every = integer(j["checkpoint_every"], w["checkpoint_every"], 0);
   if (j.contains("formats")) {
     const json& f = j["formats"];
-    if (!f.is_array()) w["formats"].fail("expected an array of \"vtu\" and/or \"obj\"", f);
-    output.vtu = output.obj = false;
+    if (!f.is_array()) w["formats"].fail("expected an array of \"vtu\", \"obj\" and \"bodies\"", f);
+    output.vtu = output.obj = output.bodies = false;
     for (size_t i = 0; i < f.size(); ++i) {
       const std::string name = string(f[i], w["formats"][i]);
       if (name == "vtu") output.vtu = true;
       else if (name == "obj") output.obj = true;
-      else w["formats"][i].fail("unknown output format (known: vtu, obj)", f[i]);
+      else if (name == "bodies") output.bodies = true;
+      else w["formats"][i].fail("unknown output format (known: vtu, obj, bodies)", f[i]);
     }
   }
 }

@@ -196,6 +196,9 @@ TEST_CASE("a spinning body in empty space keeps its momentum exactly and its ang
     for (int k = 0; k < steps; ++k) REQUIRE(simulation.step().ok());
     momenta(p, L);
     CHECK((p - p0).norm() <= 1e-12 * p0.norm());
+    // stats.csv's columns hold the same sums.
+    CHECK((simulation.last_stats().momentum - p).norm() <= 1e-14 * p.norm());
+    CHECK((simulation.last_stats().angular_momentum - L).norm() <= 1e-14 * L.norm());
     return (L - L0).norm() / L0.norm();
   };
   for (const std::string integrator : {"newmark", "generalized_alpha"}) {

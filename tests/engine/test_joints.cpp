@@ -230,7 +230,7 @@ TEST_CASE("joints: scenes/double_pendulum.json runs and reports joint_violation"
   REQUIRE(r.exit_code == 0);
   const std::vector<std::string> lines = test::read_lines(out / "stats.csv");
   REQUIRE(lines.size() == 51);
-  CHECK(lines[0] == std::string(kStatsHeader) + ",joint_violation,retries" + kBalanceColumns);
+  CHECK(lines[0] == std::string(kStatsHeader) + ",joint_violation,retries" + kBalanceColumns + kAngularMomentumColumns);
   for (size_t i = 1; i < lines.size(); ++i) {
     const double violation = std::stod(test::csv_field(lines[i], 14));
     CHECK(violation < 1e-8);

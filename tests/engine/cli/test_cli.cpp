@@ -40,7 +40,7 @@ TEST_CASE("nexdyn run writes stats.csv with the exact header and frames and scen
   REQUIRE(r2.exit_code == 0);
   const auto rows1 = test::read_lines(out1 / "stats.csv");
   REQUIRE(rows1.size() == 31);
-  CHECK(rows1[0] == std::string(kStatsHeader) + ",retries" + kBalanceColumns);
+  CHECK(rows1[0] == std::string(kStatsHeader) + ",retries" + kBalanceColumns + kAngularMomentumColumns);
   CHECK(rows1[1].rfind("1,0.01,", 0) == 0);  // the first row is the state after step 1
   CHECK(stats_without_wall_time(out1 / "stats.csv") == stats_without_wall_time(out2 / "stats.csv"));
   CHECK_FALSE(fs::exists(out1 / "stats.partial.csv"));
@@ -51,6 +51,37 @@ TEST_CASE("nexdyn run writes stats.csv with the exact header and frames and scen
   int datasets = 0;
   for (const auto& line : pvd) datasets += line.find("<DataSet") != std::string::npos;
   CHECK(datasets == 7);
+}
+
+TEST_CASE("output.formats \"bodies\" writes a row per body per frame: a falling box's centre follows the parabola") {
+  // No contact, no boundary: the box's centre of mass falls freely, and every scheme of the family
+  // integrates a constant acceleration exactly, so its height and velocity at t are y0 - g t^2 / 2
+  // and -g t to rounding.
+  const fs::path dir = test::temp_dir("cli_bodies");
+  const fs::path scene = test::write_text(dir / "fall.json", R"({
+    "time": { "dt": 0.01, "steps": 4 }, "output": { "every": 2, "formats": ["bodies"] },
+    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.2, 0.1, 0.3], "cells": [2, 1, 3] }, "material": "m", "translate": [1, 2, 3] } ] })");
+  const auto r = test::run_cli("run " + scene.string() + " --quiet --out " + (dir / "out").string());
+  REQUIRE(r.exit_code == 0);
+  CHECK_FALSE(fs::exists(dir / "out" / "frames" / frame_file_name(0, "vtu")));
+  for (int frame : {0, 2, 4}) {
+    CAPTURE(frame);
+    const auto rows = test::read_lines(dir / "out" / "frames" / bodies_file_name(frame));
+    REQUIRE(rows.size() == 2);
+    CHECK(rows[0] == kBodiesHeader);
+    std::vector<double> cells;
+    std::stringstream row(rows[1].substr(std::string("0,tets,").size()));
+    for (std::string cell; std::getline(row, cell, ',') && !cell.empty();) cells.push_back(std::stod(cell));
+    REQUIRE(cells.size() == 7);
+    const double t = 0.01 * frame;
+    CHECK(cells[0] == doctest::Approx(1000 * 0.2 * 0.1 * 0.3).epsilon(1e-12));
+    CHECK(std::abs(cells[1] - 1.0) <= 1e-12);
+    CHECK(std::abs(cells[2] - (2.0 - 0.5 * 9.81 * t * t)) <= 1e-12);
+    CHECK(std::abs(cells[3] - 3.0) <= 1e-12);
+    CHECK(std::abs(cells[5] + 9.81 * t) <= 1e-12);
+  }
+  CHECK_FALSE(fs::exists(dir / "out" / "frames" / bodies_file_name(1)));
 }
 
 TEST_CASE("bad input: one line on stderr and a non-zero exit and nothing written") {

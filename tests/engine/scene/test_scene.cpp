@@ -465,6 +465,10 @@ TEST_CASE("obj frames leave obstacle triangles out and vtu frames keep obstacle 
   const std::string vtu = vtu_document(m, scene.initial.x, scene.initial.v);
   CHECK(vtu.find("NumberOfPoints=\"" + std::to_string(m.num_vertices) + "\"") != std::string::npos);
   CHECK(vtu.find("NumberOfCells=\"" + std::to_string(m.num_tets) + "\"") != std::string::npos);
+  // Bodies file: the header and the box's row; the obstacle mesh has none.
+  const std::string bodies = bodies_document(m, scene.initial.x, scene.initial.v);
+  CHECK(bodies.rfind(std::string(kBodiesHeader) + "\n0,tets,", 0) == 0);
+  CHECK(count_lines_starting_with(bodies, "") == 2);
 }
 
 TEST_CASE("angular_velocity spins each body about its own centre of mass: momentum M v, angular momentum I omega") {
@@ -498,6 +502,26 @@ TEST_CASE("angular_velocity spins each body about its own centre of mass: moment
       kinetic += 0.5 * m.mass[i] * v.squaredNorm();
     }
     CAPTURE(c.transpose());
+    // The bodies file's row: mass, centre of mass and its velocity, 21 cells, the last 12 empty.
+    std::istringstream rows(bodies_document(m, scene.initial.x, scene.initial.v));
+    std::string line;
+    for (size_t row = 0; row <= size_t(&body - m.bodies.data()) + 1; ++row) std::getline(rows, line);
+    std::vector<std::string> cells;
+    for (size_t start = 0;;) {
+      const size_t comma = line.find(',', start);
+      cells.push_back(line.substr(start, comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    REQUIRE(cells.size() == 21);
+    CHECK(cells[0] == std::to_string(&body - m.bodies.data()));
+    CHECK(cells[1] == "tets");
+    CHECK(std::stod(cells[2]) == doctest::Approx(M).epsilon(1e-15));
+    for (int k = 0; k < 3; ++k) {
+      CHECK(std::stod(cells[3 + k]) == doctest::Approx(c[k]).epsilon(1e-14));
+      CHECK(std::abs(std::stod(cells[6 + k]) - v0[k]) <= 1e-13);
+    }
+    for (int k = 9; k < 21; ++k) CHECK(cells[k].empty());
     CHECK((p - M * v0).norm() <= 1e-13 * M * v0.norm());
     CHECK((L - I * omega).norm() <= 1e-12 * (I * omega).norm());
     const double expected = 0.5 * M * v0.squaredNorm() + 0.5 * omega.dot(I * omega);
