@@ -185,6 +185,14 @@ class RowFile {
       const auto size = fs::file_size(partial_, ec);
       if (ec || static_cast<int64_t>(size) < resume_bytes)
         throw CheckpointError(partial_.string() + " is shorter than when the checkpoint was written");
+      // Rows are appended under the header already there: it must be this version's (a run
+      // written before a column was added would get rows longer than its header).
+      std::string first;
+      std::ifstream existing(partial_);
+      std::getline(existing, first);
+      if (first != header)
+        throw CheckpointError(partial_.string() + ": its header is not the one this version of nexdyn writes (\"" +
+                              header + "\"): the run was written by another version; run it again");
       fs::resize_file(partial_, static_cast<uintmax_t>(resume_bytes), ec);
       if (ec) throw std::runtime_error(partial_.string() + ": cannot truncate: " + ec.message());
       file_.open(partial_, std::ios::app);
@@ -412,8 +420,8 @@ RunSummary resume_run(const fs::path& out, bool progress) {
     }
     std::unique_ptr<RowFile> stats, timings;
     try {
-      stats = std::make_unique<RowFile>(out, "stats", "", record.stats_bytes);
-      timings = std::make_unique<RowFile>(out, "timings", "", record.timings_bytes);
+      stats = std::make_unique<RowFile>(out, "stats", stats_header(*scene), record.stats_bytes);
+      timings = std::make_unique<RowFile>(out, "timings", timings_header(), record.timings_bytes);
     } catch (const CheckpointError& e) {
       std::fprintf(stderr, "nexdyn: skipping checkpoint %s: %s\n", path.string().c_str(), e.what());
       continue;

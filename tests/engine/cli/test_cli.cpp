@@ -84,6 +84,28 @@ TEST_CASE("output.formats \"bodies\" writes a row per body per frame: a falling 
   CHECK_FALSE(fs::exists(dir / "out" / "frames" / bodies_file_name(1)));
 }
 
+TEST_CASE("resume refuses a run whose stats header another version wrote, and leaves its rows alone") {
+  // A run stopped at step 5, its header then made another version's (one column renamed, the
+  // same length, as when a later version appends or renames a column): resuming would append
+  // rows that do not match it.
+  const fs::path out = test::temp_dir("cli_resume_header") / "run";
+  const std::string scene = test::scene_path("cube_drop.json").string();
+  REQUIRE(test::run_cli_with_env("NEXDYN_TEST_SIGNAL=TERM@5", "run " + scene + " --steps 10 --quiet --out " + out.string())
+              .exit_code == 143);
+  std::vector<std::string> rows = test::read_lines(out / "stats.partial.csv");
+  REQUIRE(rows.size() == 6);
+  const size_t at = rows[0].find("angular_momentum_x");
+  REQUIRE(at != std::string::npos);
+  rows[0][at + std::string("angular_momentum_").size()] = 'q';
+  std::string text;
+  for (const std::string& row : rows) text += row + "\n";
+  test::write_text(out / "stats.partial.csv", text);
+  const auto r = test::run_cli("resume " + out.string() + " --quiet");
+  CHECK(r.exit_code != 0);
+  CHECK(r.output.find("stats.partial.csv: its header is not the one this version of nexdyn writes") != std::string::npos);
+  CHECK(test::read_lines(out / "stats.partial.csv") == rows);
+}
+
 TEST_CASE("bad input: one line on stderr and a non-zero exit and nothing written") {
   const fs::path dir = test::temp_dir("cli_bad");
   const fs::path out = dir / "out";
