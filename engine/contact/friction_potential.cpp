@@ -3,6 +3,7 @@
 
 #include "engine/parallel.hpp"
 #include "kernels/distance/edge_edge_mollifier.hpp"
+#include "kernels/friction/friction.hpp"
 
 namespace nexdyn {
 

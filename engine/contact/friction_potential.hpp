@@ -15,7 +15,7 @@
 
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/model.hpp"
-#include "kernels/friction/friction.hpp"
+#include "kernels/friction/friction_types.hpp"
 
 #include <cstdint>
 #include <vector>

@@ -82,6 +82,7 @@
 #include "kernels/distance/distance_primitives.hpp"
 #include "kernels/distance/edge_edge_distance.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
+#include "kernels/friction/friction_types.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -92,31 +93,6 @@
 #include <limits>
 
 namespace nexdyn {
-
-// The closest feature pair of a contact stencil (mirrors the barrier's stencil kinds; a mollified
-// edge-edge stencil uses edge_edge with the closest features of its case, see friction_basis).
-enum class FrictionStencil : uint8_t {
-  vertex_plane, point_point, point_edge, point_triangle, edge_edge
-};
-
-// Number of stencil vertices n: the meaningful part of the padded 12-DOF values is the first 3 n.
-inline int friction_stencil_size(FrictionStencil kind) {
-  switch (kind) {
-    case FrictionStencil::vertex_plane: return 1;
-    case FrictionStencil::point_point: return 2;
-    case FrictionStencil::point_edge: return 3;
-    case FrictionStencil::point_triangle: return 4;
-    case FrictionStencil::edge_edge: return 4;
-  }
-  return 4;
-}
-
-// Lagged geometry of one contact, computed once per lagging iteration (112 bytes).
-struct FrictionBasis {
-  Eigen::Matrix<double, 3, 2> P;  // orthonormal basis of the tangent plane at x^t
-  Eigen::Vector4d w;              // closest-point weights: Gamma = w^T (x) I3, zero past n
-  int num_points = 0;             // stencil vertices n
-};
 
 // ------------------------------------------------------------------------------------------------
 // Closest-point parameters at the lagged positions. They describe the interior case of each
@@ -376,13 +352,6 @@ inline Eigen::Vector2d tangential_displacement(const FrictionBasis& f, const Vec
   for (int i = 0; i < f.num_points; ++i) r += f.w(i) * dx.segment<3>(3 * i);
   return f.P.transpose() * r;
 }
-
-// Coulomb coefficients of a contact (see the top): static, below the sticking speed, and
-// kinetic, above twice it. mu_s = mu_k is plain IPC friction.
-struct FrictionCoefficients {
-  double mu_s = 0.0;
-  double mu_k = 0.0;
-};
 
 // The friction magnitude g(y) = mu(y) f1(y) of a contact and its relatives, y = |u| >= 0.
 struct FrictionMagnitude {

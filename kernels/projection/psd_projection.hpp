@@ -8,7 +8,7 @@
 // brute-force version is the reference for it and the tool for stencils without a known
 // eigensystem. psd_factor3 (3x3 blocks, lane-wise) returns a factor L with L L^T = A+ instead.
 //
-// Fixed-size Eigen types only: SelfAdjointEigenSolver on them does not allocate.
+// project_psd takes fixed-size Eigen types only: SelfAdjointEigenSolver on them does not allocate.
 #pragma once
 
 #include "kernels/projection/sym_eigen3.hpp"
@@ -53,6 +53,16 @@ int project_psd(Eigen::Matrix<double, N, N>& A, double min_eigenvalue = 0.0) {
   return clamped;
 }
 
+// The eigenvalues (ascending) and eigenvectors (columns, when asked for) of a symmetric matrix of
+// any size, for tests and diagnostics. Eigen's dynamic-size solver, compiled once in
+// psd_projection.cpp: every fixed size a test instantiated cost that test file about a minute of
+// compiling (the solver's unrolled triangular loops), and these callers do not need the speed.
+struct SymmetricEigen {
+  Eigen::VectorXd values;
+  Eigen::MatrixXd vectors;  // empty unless asked for
+};
+SymmetricEigen symmetric_eigen(const Eigen::Ref<const Eigen::MatrixXd>& A, bool with_vectors = true);
+
 // Smallest eigenvalue of a symmetric matrix (for tests and diagnostics).
 template <int N>
 double min_eigenvalue(const Eigen::Matrix<double, N, N>& A) {
@@ -62,9 +72,7 @@ double min_eigenvalue(const Eigen::Matrix<double, N, N>& A) {
     sym_eigen3(A, values, vectors);
     return values[0];
   } else {
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> solver(
-        A, Eigen::EigenvaluesOnly);
-    return solver.eigenvalues()[0];
+    return symmetric_eigen(A, false).values[0];
   }
 }
 
@@ -98,8 +106,7 @@ bool cholesky_psd_test(const Eigen::Matrix<double, N, N>& A, double rel_tol) {
 // True when every eigenvalue of the symmetric matrix A is >= -rel_tol * max|eigenvalue|.
 template <int N>
 bool is_psd(const Eigen::Matrix<double, N, N>& A, double rel_tol = 1e-10) {
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> solver(A, Eigen::EigenvaluesOnly);
-  const auto& values = solver.eigenvalues();
+  const Eigen::VectorXd values = symmetric_eigen(A, false).values;
   const double largest = std::max(std::abs(values[0]), std::abs(values[N - 1]));
   return values[0] >= -rel_tol * largest;
 }
@@ -138,11 +145,12 @@ inline Eigen::Matrix3d psd_factor3(const Eigen::Matrix3d& A) {
   return to_eigen(psd_factor3(to_mat3(A)));
 }
 
-// The sizes the contact stencils use are compiled once, in psd_projection.cpp: a fixed-size
+// The sizes the contact stencils (and their tests) use are compiled once, in psd_projection.cpp: a fixed-size
 // SelfAdjointEigenSolver is slow to compile (several minutes under the sanitizers per file that
 // instantiates it), and a call costs nothing next to a 9x9 or 12x12 eigendecomposition.
 extern template int project_psd<4>(Eigen::Matrix<double, 4, 4>&, double);
 extern template int project_psd<5>(Eigen::Matrix<double, 5, 5>&, double);
+extern template int project_psd<6>(Eigen::Matrix<double, 6, 6>&, double);
 extern template int project_psd<9>(Eigen::Matrix<double, 9, 9>&, double);
 extern template int project_psd<12>(Eigen::Matrix<double, 12, 12>&, double);
 

@@ -10,7 +10,6 @@
 #include <doctest/doctest.h>
 
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <cmath>
@@ -49,14 +48,14 @@ void check_sym_eigen3(const Eigen::Matrix3d& A) {
   Eigen::Vector3d values;
   Eigen::Matrix3d vectors;
   sym_eigen3(A, values, vectors);
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> reference(A);
-  const double scale = std::max(reference.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  const SymmetricEigen reference = symmetric_eigen(A);
+  const double scale = std::max(reference.values.cwiseAbs().maxCoeff(), 1e-300);
   CAPTURE(A);
   CAPTURE(values.transpose());
   CHECK(values[0] <= values[1]);
   CHECK(values[1] <= values[2]);
   // Errors are measured after dividing by the scale: norm() of a 1e200 matrix overflows.
-  CHECK(((values - reference.eigenvalues()) / scale).norm() <= 1e-13);
+  CHECK(((values - reference.values) / scale).norm() <= 1e-13);
   CHECK((vectors.transpose() * vectors - Eigen::Matrix3d::Identity()).norm() <= 1e-14);
   CHECK(vectors.determinant() == doctest::Approx(1.0).epsilon(1e-14));
   CHECK(((A / scale) * vectors - vectors * (values / scale).asDiagonal()).norm() <= 1e-13);
@@ -106,25 +105,23 @@ template <int N>
 void check_projection(std::mt19937_64& rng) {
   using Matrix = Eigen::Matrix<double, N, N>;
   const Matrix A = random_symmetric<N>(rng);
-  const Eigen::SelfAdjointEigenSolver<Matrix> eig(A);
-  const int negative = int((eig.eigenvalues().array() < 0.0).count());
-  const Matrix expected = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
-                          eig.eigenvectors().transpose();
+  const SymmetricEigen eig = symmetric_eigen(A);
+  const int negative = int((eig.values.array() < 0.0).count());
+  const Matrix expected = eig.vectors * eig.values.cwiseMax(0.0).asDiagonal() * eig.vectors.transpose();
   Matrix P = A;
   CHECK(project_psd<N>(P) == negative);
   CHECK(P == P.transpose());  // exactly symmetric
   CHECK((P - expected).norm() <= 1e-13 * A.norm());
-  const Eigen::SelfAdjointEigenSolver<Matrix> projected(P);
-  CHECK(projected.eigenvalues()[0] >= -1e-14 * A.norm());
+  CHECK(symmetric_eigen(P, false).values[0] >= -1e-14 * A.norm());
   // Nearest PSD matrix in Frobenius norm: the distance is exactly the negative part's norm.
-  const double negative_part = eig.eigenvalues().cwiseMin(0.0).norm();
+  const double negative_part = eig.values.cwiseMin(0.0).norm();
   CHECK((P - A).norm() == doctest::Approx(negative_part).epsilon(1e-10));
   // Idempotent up to rounding (clamped eigenvalues come back as +-ulp zeros).
   Matrix again = P;
   project_psd<N>(again);
   CHECK((again - P).norm() <= 1e-13 * A.norm());
   // min_eigenvalue / is_psd agree with Eigen.
-  CHECK(min_eigenvalue<N>(A) == doctest::Approx(eig.eigenvalues()[0]).epsilon(1e-12));
+  CHECK(min_eigenvalue<N>(A) == doctest::Approx(eig.values[0]).epsilon(1e-12));
   CHECK(is_psd<N>(A) == (negative == 0));
   CHECK(is_psd<N>(P));
 }
@@ -149,14 +146,13 @@ TEST_CASE("projection: cholesky_psd_test accepts singular PSD and rejects negati
     const Matrix9 A = J.transpose() * J;  // rank 3: six zero eigenvalues, up to rounding
     CHECK(cholesky_psd_test<9>(A, 1e-12));
     // One eigenvector direction pushed below zero by 1e-8 of the scale: rejected.
-    const Eigen::SelfAdjointEigenSolver<Matrix9> eig(A);
-    const Eigen::Matrix<double, 9, 1> v = eig.eigenvectors().col(0);  // a null vector of A
+    const Eigen::Matrix<double, 9, 1> v = symmetric_eigen(A).vectors.col(0);  // a null vector of A
     const Matrix9 B = A - 1e-8 * A.diagonal().maxCoeff() * v * v.transpose();
     CHECK_FALSE(cholesky_psd_test<9>(B, 1e-12));
     // Generic random symmetric matrices are indefinite: rejected exactly when Eigen finds a
     // negative eigenvalue of any size beyond the tolerance.
     const Matrix9 C = random_symmetric<9>(rng);
-    const double lowest = Eigen::SelfAdjointEigenSolver<Matrix9>(C).eigenvalues()[0];
+    const double lowest = symmetric_eigen(C, false).values[0];
     if (std::abs(lowest) > 1e-6) CHECK(cholesky_psd_test<9>(C, 1e-12) == (lowest > 0.0));
   }
 }
