@@ -37,7 +37,16 @@ struct Material {
   double youngs = 0.0;   // [Pa]
   double poisson = 0.0;  // [-]
   double density = 0.0;  // [kg/m^3]
+  // "affine": the bodies of this material are affine bodies (AffineBody below), held to a rotation
+  // by the orthogonality potential of this stiffness instead of deforming by the elastic model.
+  bool affine = false;
+  double stiffness = 0.0;  // [Pa] kappa of kappa V ||A A^T - I||^2 (affine only)
 };
+
+// The orthogonality stiffness of an affine material that gives none [Pa]: 1e8, Lan et al. 2022's
+// choice for stiff bodies (the body's strain under its own contact forces is about force / (kappa
+// area), so 1e8 keeps centimetre bodies' shape to well under a micrometre).
+inline constexpr double kAffineStiffness = 1e8;
 
 // A body is a range of vertices, tets and surface triangles/edges in the flat arrays.
 struct BodyRange {
@@ -116,6 +125,22 @@ struct Joint {
   int32_t scene_entry = 0;          // index of its "joints" entry
 };
 
+// An affine body (kernels/affine/affine_body.hpp; issue 40): a stiff body as 12 coordinates, held
+// in four node vertices of its own, p (its centre of mass) and c_0, c_1, c_2 (the columns of
+// A R, R its principal frame at rest), whose masses are the body's mass m and its principal
+// second moments L_j = integral rho y_j^2 dV (the mass matrix is diagonal in these coordinates).
+// Its surface vertices follow the nodes: x = p + y_0 c_0 + y_1 c_1 + y_2 c_2 with y their rest
+// coordinates in the principal frame (Model::follower_rest; engine/coordinate_map.hpp).
+struct AffineBody {
+  int32_t body = -1;            // index into bodies
+  int32_t node = -1;            // its node vertices: node (p), node + 1 .. node + 3 (c_0 .. c_2)
+  int32_t follower_begin = 0;   // its followers: vertices [follower_begin, + follower_count)
+  int32_t follower_count = 0;
+  double volume = 0.0;          // [m^3]
+  double stiffness = 0.0;       // kappa of the orthogonality potential kappa V ||A A^T - I||^2 [Pa]
+  Eigen::Matrix3d frame = Eigen::Matrix3d::Identity();  // R: the principal axes at rest (columns)
+};
+
 struct Model {
   // ---- per vertex (num_vertices) -----------------------------------------------------------
   int32_t num_vertices = 0;
@@ -148,10 +173,27 @@ struct Model {
   std::vector<Joint> joints;
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);  // [m/s^2]
 
+  // ---- affine bodies (empty in a scene without them) ---------------------------------------
+  std::vector<AffineBody> affine_bodies;
+  // (num_vertices) the affine body vertex v follows (>= 0), or what it is: kOwnNode (a tet or
+  // obstacle vertex), kCentreNode (an affine body's p), kAxisNode (its c_0, c_1 or c_2)
+  std::vector<int32_t> follows;
+  std::vector<double> follower_rest;   // (num_vertices x 3) a follower's y (principal frame) [m]
+  std::vector<int32_t> affine_tets;    // (x 4) the affine bodies' tets, follower ids: for frames only
+
   int64_t num_dofs() const { return 3 * int64_t{num_vertices}; }
   bool has_dirichlet() const { return !dirichlet_motions.empty(); }
   // Held out of the Newton system: on a Dirichlet motion that is not kinematic.
   bool eliminated(int32_t v) const { return dirichlet[v] >= 0 && !dirichlet_motions[dirichlet[v]].kinematic; }
+
+  static constexpr int32_t kOwnNode = -1, kCentreNode = -2, kAxisNode = -3;
+  // A vertex that follows an affine body's nodes: no unknown of its own (engine/coordinate_map.hpp).
+  bool follows_body(int32_t v) const { return !follows.empty() && follows[v] >= 0; }
+  // An affine body's axis node c_j: its "mass" is a second moment [kg m^2], its position a column
+  // of A R, so gravity does not act on it and it carries no linear momentum.
+  bool axis_node(int32_t v) const { return !follows.empty() && follows[v] == kAxisNode; }
+  // The mass gravity pulls and linear momentum counts at vertex v [kg].
+  double translational_mass(int32_t v) const { return axis_node(v) ? 0.0 : mass[v]; }
 };
 
 }  // namespace nexdyn

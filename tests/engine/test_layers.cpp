@@ -28,6 +28,7 @@ const std::vector<Layer> kLayers = {
     {"engine/parallel.hpp", 1},
     {"engine/active_subset.hpp", 1},
     {"engine/atomic_file.", 1},
+    {"engine/coordinate_map.", 1},
     {"engine/integrator.", 1},
     {"engine/model.hpp", 1},
     {"engine/state.hpp", 1},

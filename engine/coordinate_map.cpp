@@ -1,0 +1,194 @@
+// The map between nodes and vertex positions (see coordinate_map.hpp).
+#include "engine/coordinate_map.hpp"
+
+#include "engine/parallel.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace nexdyn {
+
+namespace {
+
+// Slab size (entries) -> the stencil's width n, as the contact pattern reads it.
+int width_of_slab(int64_t entries) {
+  return entries == 9 ? 1 : entries == 36 ? 2 : entries == 81 ? 3 : 4;
+}
+
+// The sub-stencils of a stencil over K nodes (coordinate_map.hpp): one when 0 < K <= 4; else the
+// nodes in chunks of two, chunk i = positions [2i, 2i + 2), and one sub-stencil per pair of
+// chunks i < j in lexicographic order, holding chunk i's nodes then chunk j's.
+int num_chunks(int K) { return (K + 1) / 2; }
+int num_sub_stencils(int K) {
+  if (K <= 4) return K > 0 ? 1 : 0;  // none for a stencil of held vertices only
+  const int m = num_chunks(K);
+  return m * (m - 1) / 2;
+}
+
+// The positions (into the K nodes) of sub-stencil `sub`'s nodes; returns how many.
+int sub_stencil_positions(int K, int sub, int* positions) {
+  if (K <= 4) {
+    for (int a = 0; a < K; ++a) positions[a] = a;
+    return K;
+  }
+  const int m = num_chunks(K);
+  int i = 0, j = 1;
+  for (int s = 0; s < sub; ++s)
+    if (++j == m) j = ++i + 1;
+  int n = 0;
+  for (int chunk : {i, j})
+    for (int a = 2 * chunk; a < std::min(2 * chunk + 2, K); ++a) positions[n++] = a;
+  return n;
+}
+
+// Which sub-stencil carries the 3x3 block of nodes at positions a and b: the pair of their
+// chunks, or for two nodes of one chunk i the first pair holding i, (0, 1) or (0, i).
+int owner_of_block(int K, int a, int b) {
+  if (K <= 4) return 0;
+  const int m = num_chunks(K);
+  int i = std::min(a / 2, b / 2), j = std::max(a / 2, b / 2);
+  if (i == j) {
+    if (i == 0) j = 1;
+    else j = i, i = 0;
+  }
+  // Index of pair (i, j) in lexicographic order.
+  return i * (2 * m - i - 1) / 2 + (j - i - 1);
+}
+
+}  // namespace
+
+CoordinateMap::CoordinateMap(const Model& model) : model_(model) {}
+
+VertexNodes CoordinateMap::nodes_of(int32_t v) const {
+  VertexNodes out;
+  if (v < 0) return out;
+  if (!follows(v)) {
+    out.node[0] = v;
+    out.weight[0] = 1.0;
+    out.count = 1;
+    return out;
+  }
+  const AffineBody& body = model_.affine_bodies[model_.follows[v]];
+  out.count = 4;
+  out.node[0] = body.node;
+  out.weight[0] = 1.0;
+  for (int j = 0; j < 3; ++j) {
+    out.node[1 + j] = body.node + 1 + j;
+    out.weight[1 + j] = model_.follower_rest[3 * int64_t{v} + j];
+  }
+  return out;
+}
+
+void CoordinateMap::follow(double* x) const {
+  if (identity()) return;
+  parallel_for(model_.num_vertices, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      const int32_t b = model_.follows[v];
+      if (b < 0) continue;
+      const int64_t node = model_.affine_bodies[b].node;
+      const double* y = &model_.follower_rest[3 * v];
+      for (int d = 0; d < 3; ++d)
+        x[3 * v + d] = x[3 * node + d] + y[0] * x[3 * (node + 1) + d] + y[1] * x[3 * (node + 2) + d] +
+                       y[2] * x[3 * (node + 3) + d];
+    }
+  }, 1024);
+}
+
+void CoordinateMap::fold_gradient(double* g) const {
+  if (identity()) return;
+  const int64_t num_bodies = static_cast<int64_t>(model_.affine_bodies.size());
+  parallel_for(num_bodies, [&](int64_t begin, int64_t end) {
+    for (int64_t b = begin; b < end; ++b) {
+      const AffineBody& body = model_.affine_bodies[b];
+      double* gp = g + 3 * int64_t{body.node};
+      for (int64_t v = body.follower_begin; v < body.follower_begin + body.follower_count; ++v) {
+        const double* y = &model_.follower_rest[3 * v];
+        for (int d = 0; d < 3; ++d) {
+          const double gv = g[3 * v + d];
+          gp[d] += gv;
+          gp[3 + d] += y[0] * gv;
+          gp[6 + d] += y[1] * gv;
+          gp[9 + d] += y[2] * gv;
+          g[3 * v + d] = 0.0;
+        }
+      }
+    }
+  }, 16);
+}
+
+int CoordinateMap::stencil_nodes_of(const int32_t* ids, int64_t slab, VertexNodes* vertices, int32_t* nodes) const {
+  const int k = width_of_slab(slab);
+  for (int i = 0; i < k; ++i) vertices[i] = nodes_of(ids[i]);
+  const int K = stencil_nodes(vertices, k, nodes);
+  if (K < 0) throw std::logic_error("a stencil touches more than two affine bodies");
+  return K;
+}
+
+void CoordinateMap::map_stencils(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
+                                 MappedStencils& out) const {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
+  out.first.assign(num + 1, 0);
+  out.stencils.clear();
+  out.slab_begin.assign(1, 0);
+  VertexNodes vertices[4];
+  int32_t nodes[kMaxStencilNodes];
+  int positions[4];
+  for (int64_t s = 0; s < num; ++s) {
+    const int K = stencil_nodes_of(&stencils[4 * s], slab_begin[s + 1] - slab_begin[s], vertices, nodes);
+    const int subs = num_sub_stencils(K);
+    for (int sub = 0; sub < subs; ++sub) {
+      const int n = sub_stencil_positions(K, sub, positions);
+      for (int a = 0; a < 4; ++a) out.stencils.push_back(a < n ? nodes[positions[a]] : -1);
+      out.slab_begin.push_back(out.slab_begin.back() + 9 * n * n);
+    }
+    out.first[s + 1] = out.first[s] + subs;
+  }
+}
+
+void CoordinateMap::map_coupling(const std::vector<int32_t>& stencils, std::vector<int32_t>& out) const {
+  // Every id counts (coupling lists have no slabs): width 4.
+  std::vector<int64_t> slab_begin(stencils.size() / 4 + 1);
+  for (size_t s = 0; s < slab_begin.size(); ++s) slab_begin[s] = 144 * static_cast<int64_t>(s);
+  MappedStencils mapped;
+  map_stencils(stencils, slab_begin, mapped);
+  out = std::move(mapped.stencils);
+}
+
+void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
+                              const double* slabs, const MappedStencils& mapped, double* out) const {
+  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
+  parallel_for(num, [&](int64_t begin, int64_t end) {
+    VertexNodes vertices[4];
+    int32_t nodes[kMaxStencilNodes];
+    double full[9 * kMaxStencilNodes * kMaxStencilNodes];
+    int positions[4];
+    for (int64_t s = begin; s < end; ++s) {
+      const int64_t size = slab_begin[s + 1] - slab_begin[s];
+      const int k = width_of_slab(size);
+      const int K = stencil_nodes_of(&stencils[4 * s], size, vertices, nodes);
+      map_stencil_hessian(vertices, k, slabs + slab_begin[s], nodes, K, full);
+      const int N = 3 * K;
+      for (int64_t sub = mapped.first[s]; sub < mapped.first[s + 1]; ++sub) {
+        const int local = static_cast<int>(sub - mapped.first[s]);
+        const int n = sub_stencil_positions(K, local, positions);
+        double* slab = out + mapped.slab_begin[sub];
+        for (int b = 0; b < n; ++b)
+          for (int a = 0; a < n; ++a) {
+            const bool mine = owner_of_block(K, positions[a], positions[b]) == local;
+            for (int c = 0; c < 3; ++c)
+              for (int r = 0; r < 3; ++r)
+                slab[(3 * b + c) * 3 * n + 3 * a + r] =
+                    mine ? full[(3 * positions[b] + c) * N + 3 * positions[a] + r] : 0.0;
+          }
+      }
+    }
+  }, 256);
+}
+
+void CoordinateMap::follow_groups(int32_t* group) const {
+  if (identity()) return;
+  for (const AffineBody& body : model_.affine_bodies)
+    std::fill_n(group + body.follower_begin, body.follower_count, group[body.node]);
+}
+
+}  // namespace nexdyn

@@ -1,0 +1,75 @@
+// The one layer between the coordinates Newton solves for and the vertex positions every term is
+// written in (issue 40, affine bodies).
+//
+// The unknowns are "nodes", 3 DOFs each, stored in the vertex arrays: a vertex of a tet body is
+// its own node; an affine body (Model::affine_bodies) adds four node vertices p, c_0, c_1, c_2
+// (kernels/affine/affine_map.hpp), and its surface vertices *follow* them:
+//   x_v = p + y_0 c_0 + y_1 c_1 + y_2 c_2,   y = Model::follower_rest of v.
+// A follower is no unknown: Newton holds it like an eliminated vertex. Every term still sees
+// vertex positions (contact, friction, CCD and output need no change), and this map carries what
+// the terms produce over to the nodes by the chain rule (J the vertex Jacobian):
+//   positions   x_followers = J q                        follow()
+//   gradient    g_nodes += J^T g_followers                fold_gradient()
+//   Hessian     the slabs of stencil terms, J^T H J        map_stencils(), map_slabs()
+//   direction   p_followers = J p_nodes (the map is linear, so a straight step in q moves every
+//               follower on a straight line and the CCD sweeps it unchanged)   follow()
+// A mapped stencil touches up to 8 nodes (two affine bodies). The contact pattern, the islands
+// and the slab terms work in stencils of 4 vertices, so a mapped stencil of more than 4 nodes is
+// cut into sub-stencils of at most 4: its nodes in chunks of two, one sub-stencil per pair of
+// chunks, each 3x3 block of J^T H J copied into exactly one of them (so their sum is J^T H J).
+//
+// A model without affine bodies has the identity map (identity() true): callers skip it and the
+// engine's results stay bit for bit those of a tet-only engine.
+#pragma once
+
+#include "engine/model.hpp"
+#include "kernels/affine/affine_map.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace nexdyn {
+
+// Stencils over nodes (num x 4, -1 = none) made from stencils over vertices, with the slab
+// layout of their J^T H J pieces.
+struct MappedStencils {
+  std::vector<int32_t> stencils;    // (num x 4) node ids of the sub-stencils
+  std::vector<int64_t> slab_begin;  // (num + 1) start of each sub-stencil's 3n x 3n slab
+  std::vector<int64_t> first;       // (source stencils + 1) each source's first sub-stencil
+};
+
+class CoordinateMap {
+ public:
+  explicit CoordinateMap(const Model& model);
+
+  bool identity() const { return model_.affine_bodies.empty(); }
+  bool follows(int32_t v) const { return model_.follows_body(v); }
+  // How vertex v moves (a node: itself with weight 1; -1: count 0).
+  VertexNodes nodes_of(int32_t v) const;
+
+  // x (3 per vertex) at every follower from the nodes: positions, or a direction.
+  void follow(double* x) const;
+  // g at the nodes += J^T g at the followers, whose entries are then zeroed (they are no
+  // unknowns). Per body, in vertex order: the same bits on any number of threads.
+  void fold_gradient(double* g) const;
+  // The node stencils of `stencils` (num x 4 vertex ids, -1 = none), with slab sizes; `slab_begin`
+  // gives each source slab's size (3n x 3n, n its used width).
+  void map_stencils(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
+                    MappedStencils& out) const;
+  // The node stencils of `stencils` for coupling alone (islands, thawing): no slab sizes.
+  void map_coupling(const std::vector<int32_t>& stencils, std::vector<int32_t>& out) const;
+  // out (mapped.slab_begin.back() values) = the sub-stencils' slabs of J^T H J, H the source
+  // slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped` was made from.
+  void map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin, const double* slabs,
+                 const MappedStencils& mapped, double* out) const;
+  // group[v] of every follower = the group of its body's first node (-1 = does not move).
+  void follow_groups(int32_t* group) const;
+
+ private:
+  // The nodes of source stencil s (width 4, slab size from `slab`) and its vertices' nodes.
+  int stencil_nodes_of(const int32_t* ids, int64_t slab, VertexNodes* vertices, int32_t* nodes) const;
+
+  const Model& model_;
+};
+
+}  // namespace nexdyn

@@ -1,0 +1,208 @@
+// The coordinate map between nodes and vertices (engine/coordinate_map.hpp) against a dense
+// vertex Jacobian J: follower positions are J q, the folded gradient J^T g, and the mapped
+// stencil slabs, scattered, J^T H J of the vertex slabs.
+#include "engine/coordinate_map.hpp"
+
+#include <doctest/doctest.h>
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+using namespace nexdyn;
+
+namespace {
+
+// Three tet vertices (0..2); affine body A: followers 3..5, nodes 6..9; body B: followers 10, 11,
+// nodes 12..15.
+Model two_affine_bodies(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> y(-1.0, 1.0);
+  Model model;
+  model.num_vertices = 16;
+  model.follows.assign(16, -1);
+  model.follower_rest.assign(3 * 16, 0.0);
+  auto add_body = [&](int32_t followers, int32_t count, int32_t node) {
+    AffineBody body;
+    body.node = node;
+    body.follower_begin = followers;
+    body.follower_count = count;
+    for (int32_t v = followers; v < followers + count; ++v) {
+      model.follows[v] = static_cast<int32_t>(model.affine_bodies.size());
+      for (int j = 0; j < 3; ++j) model.follower_rest[3 * v + j] = y(rng);
+    }
+    model.affine_bodies.push_back(body);
+  };
+  add_body(3, 3, 6);
+  add_body(10, 2, 12);
+  return model;
+}
+
+// J over all vertex slots: rows of a follower map to its body's nodes, every other row is the
+// identity on its own slot (so a follower's column is zero: it is no unknown).
+Eigen::MatrixXd dense_jacobian(const Model& model) {
+  const int n = 3 * model.num_vertices;
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(n, n);
+  for (int v = 0; v < model.num_vertices; ++v) {
+    if (model.follows[v] < 0) {
+      J.block<3, 3>(3 * v, 3 * v).setIdentity();
+      continue;
+    }
+    const AffineBody& body = model.affine_bodies[model.follows[v]];
+    J.block<3, 3>(3 * v, 3 * body.node).setIdentity();
+    for (int j = 0; j < 3; ++j)
+      J.block<3, 3>(3 * v, 3 * (body.node + 1 + j)) = model.follower_rest[3 * v + j] * Eigen::Matrix3d::Identity();
+  }
+  return J;
+}
+
+// Adds the column-major slabs of `stencils` (-1 ids skipped) into the dense matrix H.
+void scatter(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin, const double* slabs,
+             Eigen::MatrixXd& H) {
+  for (size_t s = 0; s + 1 < slab_begin.size(); ++s) {
+    const int64_t size = slab_begin[s + 1] - slab_begin[s];
+    const int n = size == 9 ? 1 : size == 36 ? 2 : size == 81 ? 3 : 4;
+    const Eigen::Map<const Eigen::MatrixXd> slab(slabs + slab_begin[s], 3 * n, 3 * n);
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b < n; ++b) {
+        const int32_t i = stencils[4 * s + a], j = stencils[4 * s + b];
+        if (i < 0 || j < 0) continue;
+        H.block<3, 3>(3 * i, 3 * j) += slab.block<3, 3>(3 * a, 3 * b);
+      }
+  }
+}
+
+}  // namespace
+
+TEST_CASE("coordinate map: follower positions and directions are J q") {
+  std::mt19937_64 rng(1);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  REQUIRE_FALSE(map.identity());
+  std::normal_distribution<double> normal;
+  Eigen::VectorXd q(3 * model.num_vertices);
+  for (int i = 0; i < q.size(); ++i) q[i] = normal(rng);
+  for (int v = 0; v < model.num_vertices; ++v)
+    if (model.follows[v] >= 0) q.segment<3>(3 * v).setZero();
+  const Eigen::VectorXd expected = dense_jacobian(model) * q;
+  Eigen::VectorXd x = q;
+  map.follow(x.data());
+  CHECK((x - expected).norm() <= 1e-14 * expected.norm());
+  // A node or tet vertex is its own, with weight 1.
+  const VertexNodes plain = map.nodes_of(1);
+  CHECK(plain.count == 1);
+  CHECK(plain.node[0] == 1);
+  CHECK(map.nodes_of(-1).count == 0);
+}
+
+TEST_CASE("coordinate map: the folded gradient is J^T g, zero at the followers") {
+  std::mt19937_64 rng(2);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  std::normal_distribution<double> normal;
+  Eigen::VectorXd g(3 * model.num_vertices);
+  for (int i = 0; i < g.size(); ++i) g[i] = normal(rng);
+  const Eigen::VectorXd expected = dense_jacobian(model).transpose() * g;
+  map.fold_gradient(g.data());
+  CHECK((g - expected).norm() <= 1e-14 * expected.norm());
+  for (int v : {3, 4, 5, 10, 11}) CHECK(g.segment<3>(3 * v).isZero(0.0));
+}
+
+TEST_CASE("coordinate map: mapped stencil slabs sum to J^T H J, in sub-stencils of at most 4 distinct nodes") {
+  std::mt19937_64 rng(3);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  // Stencils over vertices and their widths n (slab 3n x 3n): two affine bodies (8 nodes); tet
+  // vertices with a follower (7); a vertex-plane stencil of a follower (4); a held vertex (-1)
+  // amid tet vertices; tet vertices alone; a follower with an absent second vertex.
+  const std::vector<int32_t> stencils = {3, 10, 11, 4, 0, 1, 2, 3, 5, -1, -1, -1,
+                                         0, 1, -1, 2, 0, 1, 2, -1, 10, -1, -1, -1};
+  const std::vector<int> widths = {4, 4, 1, 4, 3, 2};
+  std::vector<int64_t> slab_begin{0};
+  for (int n : widths) slab_begin.push_back(slab_begin.back() + 9 * n * n);
+  std::vector<double> slabs(slab_begin.back());
+  std::normal_distribution<double> normal;
+  for (size_t s = 0; s < widths.size(); ++s) {
+    const int n = 3 * widths[s];
+    Eigen::MatrixXd B(n, n);
+    for (int i = 0; i < B.size(); ++i) B.data()[i] = normal(rng);
+    Eigen::Map<Eigen::MatrixXd>(slabs.data() + slab_begin[s], n, n) = B * B.transpose();
+  }
+
+  MappedStencils mapped;
+  map.map_stencils(stencils, slab_begin, mapped);
+  REQUIRE(mapped.first.size() == widths.size() + 1);
+  // 8 nodes: 4 chunks of 2, 6 sub-stencils; 7 nodes: 4 chunks, 6; 4 or fewer: 1.
+  const std::vector<int64_t> subs = {6, 6, 1, 1, 1, 1};
+  for (size_t s = 0; s < subs.size(); ++s) CHECK(mapped.first[s + 1] - mapped.first[s] == subs[s]);
+  std::vector<double> out(mapped.slab_begin.back());
+  map.map_slabs(stencils, slab_begin, slabs.data(), mapped, out.data());
+
+  const int num_dofs = 3 * model.num_vertices;
+  for (size_t s = 0; s < widths.size(); ++s) {
+    CAPTURE(s);
+    // This stencil alone: its vertex slab against its sub-stencils' node slabs.
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(num_dofs, num_dofs), Hq = H;
+    const std::vector<int32_t> one(stencils.begin() + 4 * s, stencils.begin() + 4 * s + 4);
+    const std::vector<int64_t> one_begin{0, slab_begin[s + 1] - slab_begin[s]};
+    scatter(one, one_begin, slabs.data() + slab_begin[s], H);
+    const std::vector<int32_t> sub(mapped.stencils.begin() + 4 * mapped.first[s],
+                                   mapped.stencils.begin() + 4 * mapped.first[s + 1]);
+    std::vector<int64_t> sub_begin;
+    for (int64_t k = mapped.first[s]; k <= mapped.first[s + 1]; ++k)
+      sub_begin.push_back(mapped.slab_begin[k] - mapped.slab_begin[mapped.first[s]]);
+    scatter(sub, sub_begin, out.data() + mapped.slab_begin[mapped.first[s]], Hq);
+    const Eigen::MatrixXd J = dense_jacobian(model);
+    const Eigen::MatrixXd expected = J.transpose() * H * J;
+    CHECK((Hq - expected).norm() <= 1e-13 * expected.norm());
+    // Each sub-stencil: distinct nodes, none a follower, an exactly symmetric slab.
+    for (int64_t k = mapped.first[s]; k < mapped.first[s + 1]; ++k) {
+      const int32_t* ids = &mapped.stencils[4 * k];
+      for (int a = 0; a < 4; ++a) {
+        if (ids[a] < 0) continue;
+        CHECK(model.follows[ids[a]] < 0);
+        for (int b = a + 1; b < 4; ++b) CHECK(ids[a] != ids[b]);
+      }
+      const int64_t size = mapped.slab_begin[k + 1] - mapped.slab_begin[k];
+      const int n = static_cast<int>(std::lround(std::sqrt(double(size))));
+      const Eigen::Map<const Eigen::MatrixXd> slab(out.data() + mapped.slab_begin[k], n, n);
+      CHECK(slab == slab.transpose());
+    }
+  }
+}
+
+TEST_CASE("coordinate map: coupling stencils join every node of a stencil, and bodies of three are refused") {
+  std::mt19937_64 rng(4);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  std::vector<int32_t> coupled;
+  map.map_coupling({3, 10, 11, 4}, coupled);
+  // Union-find over the nodes of the sub-stencils: one set holding all 8 nodes.
+  std::vector<int> parent(model.num_vertices);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (size_t k = 0; k < coupled.size(); k += 4)
+    for (int a = 1; a < 4 && coupled[k + a] >= 0; ++a) parent[find(coupled[k + a])] = find(coupled[k]);
+  for (int node : {7, 8, 9, 12, 13, 14, 15}) CHECK(find(node) == find(6));
+  CHECK(find(0) != find(6));
+  // A tet vertex and two affine bodies: 9 nodes, more than a contact stencil can touch.
+  std::vector<int32_t> out;
+  CHECK_THROWS_AS(map.map_coupling({0, 3, 10, -1}, out), std::logic_error);
+}
+
+TEST_CASE("coordinate map: followers take the line-search group of their body") {
+  std::mt19937_64 rng(5);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  std::vector<int32_t> group(model.num_vertices, -1);
+  group[6] = 2;
+  map.follow_groups(group.data());
+  for (int v : {3, 4, 5}) CHECK(group[v] == 2);
+  for (int v : {10, 11}) CHECK(group[v] == -1);
+}
