@@ -24,6 +24,7 @@
 // The Model stays const; the scene must outlive the simulation.
 #pragma once
 
+#include "engine/coordinate_map.hpp"
 #include "engine/potential/elastic_assembly.hpp"
 #include "engine/energy_balance.hpp"
 #include "engine/potential/incremental_potential.hpp"
@@ -145,6 +146,8 @@ class Simulation {
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
   // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
   void constrain_initial_acceleration();
+  // Affine bodies' start-of-run acceleration: that of their rigid rotation (see there).
+  void add_rigid_rotation_acceleration();
 
   // ---- energy accounting and measurement (simulation_energy.cpp)
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
@@ -185,6 +188,7 @@ class Simulation {
 
   const Scene& scene_;
   const Model& model_;
+  CoordinateMap map_;  // affine bodies' nodes and followers (identity without them)
   State state_;
   StepHistory history_;  // before the terms, which bind references into it
   StepStats stats_;

@@ -52,8 +52,11 @@ Simulation::MotionSums Simulation::motion_sums() const {
     const Eigen::Vector3d vi = Eigen::Vector3d::Map(&state_.v[3 * i]);
     const Eigen::Vector3d xi = Eigen::Vector3d::Map(&state_.x[3 * i]);
     sums.kinetic += 0.5 * m * vi.squaredNorm();
-    sums.gravity -= m * model_.gravity.dot(xi);
-    sums.momentum += m * vi;
+    // An affine body's axis nodes carry its rotation: kinetic energy and angular momentum
+    // (1/2 L_j |c_j'|^2, L_j c_j x c_j'), but no weight and no linear momentum (Model::axis_node).
+    const double translational = model_.translational_mass(i);
+    sums.gravity -= translational * model_.gravity.dot(xi);
+    sums.momentum += translational * vi;
     sums.angular_momentum += m * xi.cross(vi);
   }
   return sums;

@@ -104,6 +104,7 @@ void Simulation::prepare_terms(const StepContext& ctx) {
       for (int d = 0; d < 3; ++d)
         state_.x_tilde[3 * v + d] += ctx.contact_memory_scale * memory[3 * v + d] / model_.mass[v];
     }
+    map_.follow(state_.x_tilde.data());  // followers' x_tilde = J x_tilde (they have no mass)
   }
   // The augmented Lagrangians' stiffness follows the scene's scheme at this dt (and its
   // multipliers are forces times that scheme's s), whichever scheme takes the attempt.

@@ -109,6 +109,7 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     const int32_t b = model_.vertex_body[v];
     if (kind_[b] != Kind::free || group[b] >= 0 || !still[b]) continue;
+    if (model_.axis_node(v)) continue;  // an affine body's rotation shows in its followers' speeds
     const Eigen::Vector3d x = Eigen::Vector3d::Map(&state.x[3 * int64_t{v}]);
     const Eigen::Vector3d anchor = Eigen::Vector3d::Map(&history_.rest_anchor[3 * int64_t{v}]);
     still[b] = Eigen::Vector3d::Map(&state.v[3 * int64_t{v}]).squaredNorm() < speed2 &&

@@ -70,11 +70,13 @@ void print_summary(const Scene& scene) {
 void print_tet_summary(const Scene& scene) {
   const Model& m = scene.model;
   double total_mass = 0.0;
-  for (double mi : m.mass) total_mass += mi;
+  for (int32_t v = 0; v < m.num_vertices; ++v) total_mass += m.translational_mass(v);
   std::printf("scene %s (%s)\n", scene.name.c_str(), scene.file.string().c_str());
   std::printf("  bodies %zu, vertices %d, tets %d, surface triangles %zu, DOFs %lld\n", m.bodies.size(),
               m.num_vertices, m.num_tets, m.surface_triangles.size() / 3,
               static_cast<long long>(m.num_dofs()));
+  if (!m.affine_bodies.empty())
+    std::printf("  affine bodies %zu (12 coordinates each, in the vertex and DOF counts)\n", m.affine_bodies.size());
   size_t obstacle_meshes = 0;
   for (const BodyRange& b : m.bodies) obstacle_meshes += b.obstacle;
   // Obstacle meshes share one extra fixed motion after the "boundary" entries; not counted here.

@@ -33,6 +33,7 @@ double bodies_bbox_diagonal(const Model& model) {
   for (const BodyRange& body : model.bodies) {
     if (body.obstacle) continue;
     for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+      if (model.axis_node(v)) continue;  // a coordinate of an affine body, not a point of it
       lo = lo.cwiseMin(point(model.rest_positions.data(), v));
       hi = hi.cwiseMax(point(model.rest_positions.data(), v));
     }

@@ -166,8 +166,14 @@ int64_t FrictionPotential::append_changed_stencils(double dt, double velocity_to
   // The smallest velocity change the contact's force change can make on its lightest vertex.
   auto exceeds = [&](const int32_t* stencil, double force_change) {
     double m = INFINITY;
-    for (int i = 0; i < 4; ++i)
-      if (stencil[i] >= 0 && model_.mass[stencil[i]] > 0.0) m = std::min(m, model_.mass[stencil[i]]);
+    for (int i = 0; i < 4; ++i) {
+      if (stencil[i] < 0) continue;
+      // A follower of an affine body moves with the body's mass (its own is 0).
+      const int32_t v = model_.follows_body(stencil[i]) ? model_.affine_bodies[model_.follows[stencil[i]]].node
+                                                        : stencil[i];
+      const double mi = model_.mass[v];
+      if (mi > 0.0) m = std::min(m, mi);
+    }
     return std::isfinite(m) && dt * force_change > velocity_tolerance * m;
   };
   auto projector = [](const FrictionBasis& b, int i) -> Eigen::Matrix3d { return b.w[i] * b.P * b.P.transpose(); };

@@ -28,9 +28,33 @@ std::string bodies_file_name(int64_t frame) {
 std::string bodies_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v) {
   std::string text = std::string(kBodiesHeader) + "\n";
   char buf[512];
+  std::vector<int32_t> affine_of_body(model.bodies.size(), -1);
+  for (size_t k = 0; k < model.affine_bodies.size(); ++k) affine_of_body[model.affine_bodies[k].body] = int32_t(k);
   for (size_t b = 0; b < model.bodies.size(); ++b) {
     const BodyRange& body = model.bodies[b];
     if (body.obstacle) continue;
+    if (affine_of_body[b] >= 0) {
+      // p and its velocity; A = C R^T with C = [c_0 c_1 c_2] (Model::AffineBody), A' = C' R^T, and
+      // omega the axial vector of the skew part of A' A^-1 (exactly omega for a rigid rotation).
+      const AffineBody& affine = model.affine_bodies[affine_of_body[b]];
+      const int64_t node = affine.node;
+      Eigen::Matrix3d C, C_dot;
+      for (int j = 0; j < 3; ++j) {
+        C.col(j) = Eigen::Vector3d::Map(&x[3 * (node + 1 + j)]);
+        C_dot.col(j) = Eigen::Vector3d::Map(&v[3 * (node + 1 + j)]);
+      }
+      const Eigen::Matrix3d A = C * affine.frame.transpose(), A_dot = C_dot * affine.frame.transpose();
+      const Eigen::Matrix3d W = A_dot * A.inverse();
+      const Eigen::Vector3d omega(0.5 * (W(2, 1) - W(1, 2)), 0.5 * (W(0, 2) - W(2, 0)), 0.5 * (W(1, 0) - W(0, 1)));
+      const Eigen::Vector3d p = Eigen::Vector3d::Map(&x[3 * node]), p_dot = Eigen::Vector3d::Map(&v[3 * node]);
+      int n = std::snprintf(buf, sizeof(buf), "%zu,affine,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g",
+                            b, model.mass[node], p.x(), p.y(), p.z(), p_dot.x(), p_dot.y(), p_dot.z(), omega.x(),
+                            omega.y(), omega.z());
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) n += std::snprintf(buf + n, sizeof(buf) - n, ",%.17g", A(r, c));
+      text += std::string(buf) + "\n";
+      continue;
+    }
     double mass = 0.0;
     Eigen::Vector3d moment = Eigen::Vector3d::Zero(), momentum = Eigen::Vector3d::Zero();
     for (int32_t i = body.vertex_begin; i < body.vertex_begin + body.vertex_count; ++i) {
@@ -105,14 +129,26 @@ std::string vtu_file(size_t num_points, size_t num_cells, const char* point_attr
 
 }  // namespace
 
+namespace {
+std::vector<int32_t> concatenated(const std::vector<int32_t>& a, const std::vector<int32_t>& b) {
+  std::vector<int32_t> out(a);
+  out.insert(out.end(), b.begin(), b.end());
+  return out;
+}
+}  // namespace
+
 std::string vtu_document(const Model& model, const std::vector<double>& x, const std::vector<double>& v) {
   AppendedData data;
-  const size_t nv = static_cast<size_t>(model.num_vertices), nt = static_cast<size_t>(model.num_tets);
+  // The tets of tet bodies, then those of affine bodies (which carry no elastic tets).
+  const size_t nv = static_cast<size_t>(model.num_vertices);
+  const size_t nt = static_cast<size_t>(model.num_tets) + model.affine_tets.size() / 4;
   std::vector<int32_t> offsets(nt);
   for (size_t t = 0; t < nt; ++t) offsets[t] = static_cast<int32_t>(4 * (t + 1));
   const std::vector<uint8_t> types(nt, 10);  // VTK_TETRA
   const int64_t o_points = data.add(x.data(), 3 * nv);
-  const int64_t o_conn = data.add(model.tets.data(), 4 * nt);
+  const int64_t o_conn = model.affine_tets.empty()
+                             ? data.add(model.tets.data(), 4 * nt)
+                             : data.add(concatenated(model.tets, model.affine_tets).data(), 4 * nt);
   const int64_t o_offsets = data.add(offsets.data(), nt);
   const int64_t o_types = data.add(types.data(), nt);
   const int64_t o_velocity = data.add(v.data(), 3 * nv);

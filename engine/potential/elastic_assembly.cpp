@@ -2,6 +2,7 @@
 #include "engine/potential/elastic_assembly.hpp"
 
 #include "engine/parallel.hpp"
+#include "kernels/affine/affine_body.hpp"
 #include "kernels/elasticity/elasticity_range.hpp"
 
 #include <algorithm>
@@ -12,6 +13,8 @@ namespace nexdyn {
 namespace {
 // Tets per parallel chunk: a Hessian chunk is 64 x 1.2 KB of output, a comfortable L2 working set.
 constexpr int64_t kTetGrain = 64;
+// Affine bodies per parallel chunk (one 9x9 projected Hessian each).
+constexpr int64_t kAffineGrain = 64;
 
 TetRange tet_range(const Model& m, const double* x) {
   return TetRange{x, m.tets.data(), m.Dm_inv.data(), m.rest_volume.data()};
@@ -24,14 +27,38 @@ std::vector<int32_t> concatenated(const std::vector<int32_t>& a, const std::vect
   out.insert(out.end(), b.begin(), b.end());
   return out;
 }
+
+// The coupling groups after the given ones: each affine body's four nodes [p, c_0, c_1, c_2],
+// whose 12x12 slab holds its orthogonality Hessian. p's rows and columns are zero (p meets the
+// c_j only through contact), but it is in the group so that a body's four nodes are always in
+// one island and one line-search group, as the coordinate map needs: a follower moves with all
+// four (engine/coordinate_map.hpp).
+std::vector<int32_t> with_affine_groups(const Model& model, const std::vector<int32_t>& groups) {
+  std::vector<int32_t> out(groups);
+  for (const AffineBody& body : model.affine_bodies)
+    for (int k = 0; k < 4; ++k) out.push_back(body.node + k);
+  return out;
+}
+
+// The kernel's A for an affine body: rows c_0, c_1, c_2, so A = (A_body R)^T, whose singular
+// values, hence ||A A^T - I||, are the body's; its gradient and Hessian come in node order.
+Eigen::Matrix3d axis_rows(const AffineBody& body, const double* x) {
+  Eigen::Matrix3d A;
+  for (int j = 0; j < 3; ++j) A.row(j) = Eigen::Vector3d::Map(x + 3 * int64_t{body.node + 1 + j});
+  return A;
+}
+
+// kappa V: the orthogonality potential's weight.
+double orthogonality_weight(const AffineBody& body) { return body.stiffness * body.volume; }
 }  // namespace
 
 ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups,
                                  int64_t block_tets)
     : model_(model),
-      pattern_(build_tet_hessian_pattern(model.num_vertices, coupling_groups.empty()
-                                                                 ? model.tets
-                                                                 : concatenated(model.tets, coupling_groups))) {
+      pattern_(build_tet_hessian_pattern(
+          model.num_vertices, coupling_groups.empty() && model.affine_bodies.empty()
+                                  ? model.tets
+                                  : concatenated(model.tets, with_affine_groups(model, coupling_groups)))) {
   const int64_t nv = model.num_vertices, nt = model.num_tets;
   corner_ptr_.assign(nv + 1, 0);
   for (int64_t c = 0; c < 4 * nt; ++c) ++corner_ptr_[model.tets[c] + 1];
@@ -41,7 +68,8 @@ ElasticAssembly::ElasticAssembly(const Model& model, const std::vector<int32_t>&
   for (int64_t c = 0; c < 4 * nt; ++c) corners_[fill[model.tets[c]]++] = c;
   tet_energy_.resize(nt);
   tet_gradient_.resize(12 * nt);
-  num_groups_ = static_cast<int64_t>(coupling_groups.size() / 4);
+  affine_group_begin_ = static_cast<int64_t>(coupling_groups.size() / 4);
+  num_groups_ = affine_group_begin_ + static_cast<int64_t>(model.affine_bodies.size());
   // Segments are in value order, and a vertex's columns are contiguous values.
   vertex_segment_.resize(nv + 1);
   for (int64_t v = 0; v <= nv; ++v)
@@ -85,7 +113,30 @@ double ElasticAssembly::energy(const double* x) const {
       return energy_range(mat.model, range, batch.tet_begin + b, batch.tet_begin + e, mat.lame);
     }, kTetGrain);
   }
-  return total;
+  return total + affine_energy(x);
+}
+
+double ElasticAssembly::affine_energy(const double* x) const {
+  const std::vector<AffineBody>& bodies = model_.affine_bodies;
+  if (bodies.empty()) return 0.0;
+  return deterministic_sum(static_cast<int64_t>(bodies.size()), [&](int64_t b, int64_t e) {
+    double sum = 0.0;
+    for (int64_t k = b; k < e; ++k)
+      sum += orthogonality_weight(bodies[k]) * orthogonality_energy(axis_rows(bodies[k], x));
+    return sum;
+  }, kAffineGrain);
+}
+
+void ElasticAssembly::add_affine_gradient(const double* x, double* grad, const ActiveSubset* subset) const {
+  const std::vector<AffineBody>& bodies = model_.affine_bodies;
+  parallel_for(static_cast<int64_t>(bodies.size()), [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      const AffineBody& body = bodies[k];
+      if (subset && !subset->vertex_mask[body.node]) continue;
+      const AffineVector9 g = orthogonality_weight(body) * orthogonality_gradient(axis_rows(body, x));
+      for (int i = 0; i < 9; ++i) grad[3 * int64_t{body.node + 1} + i] += g[i];
+    }
+  }, kAffineGrain);
 }
 
 void ElasticAssembly::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
@@ -104,6 +155,17 @@ void ElasticAssembly::group_energy(const double* x, const int32_t* group_of_vert
                 [&](int64_t b, int64_t e) { return energy_range(mat.model, range, first + b, first + e, mat.lame); },
                 total);
   }
+  const std::vector<AffineBody>& bodies = model_.affine_bodies;
+  if (bodies.empty()) return;
+  grouped_sum(static_cast<int64_t>(bodies.size()), kAffineGrain,
+              [&](int64_t k) { return group_of_vertex[bodies[k].node]; },
+              [&](int64_t b, int64_t e) {
+                double sum = 0.0;
+                for (int64_t k = b; k < e; ++k)
+                  sum += orthogonality_weight(bodies[k]) * orthogonality_energy(axis_rows(bodies[k], x));
+                return sum;
+              },
+              total);
 }
 
 double ElasticAssembly::sum_tet_energies() const {
@@ -139,7 +201,8 @@ double ElasticAssembly::energy_gradient(const double* x, double* grad) {
     }, kTetGrain);
   }
   parallel_for(model_.num_vertices, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); }, 1024);
-  return sum_tet_energies();
+  add_affine_gradient(x, grad, nullptr);
+  return sum_tet_energies() + affine_energy(x);
 }
 
 void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* hessian_values,
@@ -179,8 +242,21 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
     source.first_tet = first;
     gather_columns(intersect_ranges(vertices, block_vertices_[k]), source);
   }
+  // Affine bodies' orthogonality Hessians into their coupling slabs (p's rows and columns zero).
+  const std::vector<AffineBody>& bodies = model_.affine_bodies;
+  parallel_for(static_cast<int64_t>(bodies.size()), [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      const AffineBody& body = bodies[k];
+      if (subset && !subset->vertex_mask[body.node]) continue;
+      const AffineMatrix9 H = orthogonality_weight(body) * orthogonality_hessian(axis_rows(body, x), true);
+      Eigen::Map<Eigen::Matrix<double, 12, 12>> slab(coupling_hessian_.data() + 144 * (affine_group_begin_ + k));
+      slab.setZero();
+      slab.bottomRightCorner<9, 9>() = H;
+    }
+  }, kAffineGrain);
   gather_columns(intersect_ranges(vertices, loose_vertices_), source);  // coupling slabs only
   parallel_for_ranges(vertices, 1024, [&](int64_t b, int64_t e) { gather_gradient(grad, b, e); });
+  add_affine_gradient(x, grad, subset);
 }
 
 }  // namespace nexdyn

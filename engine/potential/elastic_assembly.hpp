@@ -1,4 +1,6 @@
-// Elastic energy, gradient and PSD-projected Hessian of all tets, assembled in parallel.
+// Elastic energy, gradient and PSD-projected Hessian of all tets, and of the affine bodies'
+// orthogonality potential kappa V ||A A^T - I||^2 (their elastic energy: Model::AffineBody),
+// assembled in parallel.
 //
 // Element kernels (kernels/elasticity) write per-tet slabs indexed by tet id; the slabs are then
 // gathered into global arrays in a fixed order (vertex -> its tet corners, CSC value -> its slab
@@ -19,6 +21,8 @@ class ElasticAssembly {
   // coupling_groups: (num_groups x 4) vertex ids of extra constant Hessian terms that are not
   // tets (joints, engine/potential/joints.hpp). Their vertex pairs are in pattern(), and their 12x12 slabs
   // (coupling_slabs(), zero until written) are added to every gradient_hessian().
+  // Each affine body adds a coupling group of its own after these, its four nodes, whose slab is
+  // its orthogonality Hessian at the x of the last gradient_hessian().
   // block_tets: the size Hessian blocks are merged up to (see the members; tests use small ones).
   static constexpr int64_t kBlockTets = 8192;
   explicit ElasticAssembly(const Model& model, const std::vector<int32_t>& coupling_groups = {},
@@ -48,10 +52,15 @@ class ElasticAssembly {
  private:
   void gather_gradient(double* grad, int64_t vertex_begin, int64_t vertex_end) const;
   double sum_tet_energies() const;
+  // The affine bodies' orthogonality energy at x, and grad += its gradient (only the bodies in
+  // the subset, when given).
+  double affine_energy(const double* x) const;
+  void add_affine_gradient(const double* x, double* grad, const ActiveSubset* subset) const;
 
   const Model& model_;
   HessianPattern pattern_;
-  int64_t num_groups_ = 0;               // coupling groups
+  int64_t num_groups_ = 0;               // coupling groups, the affine bodies' included
+  int64_t affine_group_begin_ = 0;       // the first affine body's coupling group
   std::vector<int64_t> corner_ptr_;      // (num_vertices + 1) CSR: vertex -> its tet corners
   std::vector<int64_t> corners_;         // (4 num_tets) tet * 4 + corner, increasing per vertex
   std::vector<int64_t> vertex_segment_;  // (num_vertices + 1) first gather segment of each vertex

@@ -19,7 +19,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 IncrementalPotential::IncrementalPotential(const Model& model, ElasticAssembly& elastic, StepHistory& history,
                                            BarrierPotential* contact, const JointSet* joints)
-    : model_(model), elastic_(elastic), history_(history), contact_(contact), joints_(joints) {
+    : model_(model), map_(model), elastic_(elastic), history_(history), contact_(contact), joints_(joints) {
   add_term(std::make_unique<InertiaTerm>(model));
   add_term(std::make_unique<ElasticTerm>(model, elastic));
   if (joints) add_term(std::make_unique<JointTerm>(*joints));
@@ -109,15 +109,22 @@ void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   if (!contact_pattern_) return;
   // One stencil list for the pattern, the stencil_slabs terms' in list order (copied only when
   // more than one has stencils: friction's are the barrier's of the lagged state, so the pattern
-  // rarely grows).
+  // rarely grows). With affine bodies, the terms' stencils over nodes (coordinate_map.hpp).
   const std::vector<int32_t>* only_stencils = nullptr;
   const std::vector<int64_t>* only_slab_begin = nullptr;
   int with_stencils = 0;
-  for (const auto& term : terms_) {
-    const StencilSlabs s = term->slabs();
-    if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
-    only_stencils = s.stencils;
-    only_slab_begin = s.slab_begin;
+  mapped_.resize(terms_.size());
+  for (size_t t = 0; t < terms_.size(); ++t) {
+    const StencilSlabs s = terms_[t]->slabs();
+    if (terms_[t]->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+    if (!map_.identity()) {
+      map_.map_stencils(*s.stencils, *s.slab_begin, mapped_[t]);
+      only_stencils = &mapped_[t].stencils;
+      only_slab_begin = &mapped_[t].slab_begin;
+    } else {
+      only_stencils = s.stencils;
+      only_slab_begin = s.slab_begin;
+    }
     ++with_stencils;
   }
   if (with_stencils <= 1) {
@@ -129,12 +136,14 @@ void IncrementalPotential::prepare(const double* x, bool first_iteration) {
   }
   stencils_.clear();
   slab_begin_.assign(1, 0);
-  for (const auto& term : terms_) {
-    const StencilSlabs s = term->slabs();
-    if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
-    stencils_.insert(stencils_.end(), s.stencils->begin(), s.stencils->end());
+  for (size_t t = 0; t < terms_.size(); ++t) {
+    const StencilSlabs s = terms_[t]->slabs();
+    if (terms_[t]->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+    const std::vector<int32_t>& stencils = map_.identity() ? *s.stencils : mapped_[t].stencils;
+    const std::vector<int64_t>& slab_begin = map_.identity() ? *s.slab_begin : mapped_[t].slab_begin;
+    stencils_.insert(stencils_.end(), stencils.begin(), stencils.end());
     const int64_t offset = slab_begin_.back();
-    for (size_t k = 1; k < s.slab_begin->size(); ++k) slab_begin_.push_back(offset + (*s.slab_begin)[k]);
+    for (size_t k = 1; k < slab_begin.size(); ++k) slab_begin_.push_back(offset + slab_begin[k]);
   }
   contact_pattern_->update(stencils_, slab_begin_, first_iteration);
 }
@@ -158,12 +167,22 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
     slab_pieces_.clear();
     piece_begin_.clear();
     int64_t begin = 0;
-    for (const auto& term : terms_) {
-      const StencilSlabs s = term->slabs();
-      if (term->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
-      slab_pieces_.push_back(s.slabs);
+    mapped_slabs_.resize(terms_.size());
+    for (size_t t = 0; t < terms_.size(); ++t) {
+      const StencilSlabs s = terms_[t]->slabs();
+      if (terms_[t]->hessian() != TermHessian::stencil_slabs || !s.stencils) continue;
+      if (map_.identity()) {
+        slab_pieces_.push_back(s.slabs);
+        piece_begin_.push_back(begin);
+        begin += s.slab_begin->back();
+        continue;
+      }
+      // J^T H J of the term's slabs, over the sub-stencils prepare() gave the pattern.
+      mapped_slabs_[t].resize(mapped_[t].slab_begin.back());
+      map_.map_slabs(*s.stencils, *s.slab_begin, s.slabs, mapped_[t], mapped_slabs_[t].data());
+      slab_pieces_.push_back(mapped_slabs_[t].data());
       piece_begin_.push_back(begin);
-      begin += s.slab_begin->back();
+      begin += mapped_[t].slab_begin.back();
     }
     if (slab_pieces_.empty()) {
       slab_pieces_.push_back(nullptr);
@@ -174,11 +193,13 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
   const CscPattern& merged = pattern();
   for (const auto& term : terms_)
     if (term->hessian() == TermHessian::diagonal) term->add_diagonal(x, weight(*term), merged, values, subset);
+  map_.fold_gradient(grad);  // followers' gradients onto their bodies' nodes
 }
 
 void IncrementalPotential::gradient(const double* x, double* grad) {
   std::fill(grad, grad + model_.num_dofs(), 0.0);
   for (const auto& term : terms_) term->add_gradient(x, weight(*term), grad);
+  map_.fold_gradient(grad);
 }
 
 double IncrementalPotential::max_step(const double* x, const double* p) {
@@ -201,10 +222,19 @@ void IncrementalPotential::group_max_steps(const double* x, const int32_t* group
   for (const auto& term : terms_) term->group_max_steps(x, group_of_vertex, alpha);
 }
 
-std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils() const {
+std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils() {
   std::vector<const std::vector<int32_t>*> lists;
-  for (const auto& term : terms_)
-    if (const std::vector<int32_t>* stencils = term->coupling_stencils()) lists.push_back(stencils);
+  mapped_coupling_.resize(terms_.size());
+  for (size_t t = 0; t < terms_.size(); ++t) {
+    const std::vector<int32_t>* stencils = terms_[t]->coupling_stencils();
+    if (!stencils) continue;
+    if (map_.identity()) {
+      lists.push_back(stencils);
+      continue;
+    }
+    map_.map_coupling(*stencils, mapped_coupling_[t]);  // over nodes: islands are of nodes
+    lists.push_back(&mapped_coupling_[t]);
+  }
   return lists;
 }
 
@@ -258,6 +288,9 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
       joint_force_[i] = joint_gradient_[i] * to_joint_force;
     }
   }
+  // Affine bodies: the impulse on their nodes (J^T f), their nodes' delta, and their followers'
+  // (J delta), so that the followers' velocities stay those of their bodies.
+  map_.fold_gradient(impulsive.data());
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     if (model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0)) continue;
     for (int d = 0; d < 3; ++d) {
@@ -265,6 +298,7 @@ void IncrementalPotential::impulsive_forces(const double* x, std::vector<double>
       delta[i] = -(impulsive[i] / (scale_ * model_.mass[v]));
     }
   }
+  map_.follow(delta.data());
 }
 
 }  // namespace nexdyn

@@ -44,6 +44,7 @@
 #pragma once
 
 #include "engine/contact/barrier_potential.hpp"
+#include "engine/coordinate_map.hpp"
 #include "engine/contact/friction_potential.hpp"
 #include "engine/potential/elastic_assembly.hpp"
 #include "engine/potential/joints.hpp"
@@ -112,7 +113,12 @@ class IncrementalPotential {
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
   // The stencil lists (num x 4 vertex ids, -1 = none) that couple vertices in the Hessian beyond
   // the elastic pattern: the barrier's active set and the lagged friction contacts.
-  std::vector<const std::vector<int32_t>*> coupling_stencils() const;
+  // With affine bodies these are over nodes (engine/coordinate_map.hpp), valid until the next call.
+  std::vector<const std::vector<int32_t>*> coupling_stencils();
+  // Between the nodes Newton solves for and the vertices the terms see (identity without affine
+  // bodies). The potential's gradients and Hessians are over nodes: the followers' parts are
+  // folded onto their bodies' nodes, and the followers' entries are zero.
+  const CoordinateMap& map() const { return map_; }
 
   // The stencil lists whose part of E changed outside Newton since the last call (a new friction
   // lag): the coming solve thaws their islands. Clears the terms' reports.
@@ -146,6 +152,7 @@ class IncrementalPotential {
   double weight(const PotentialTerm& term) const;
 
   const Model& model_;
+  CoordinateMap map_;
   ElasticAssembly& elastic_;
   StepHistory& history_;  // kappa
   std::vector<std::unique_ptr<PotentialTerm>> terms_;
@@ -162,6 +169,11 @@ class IncrementalPotential {
   std::vector<int64_t> slab_begin_;
   std::vector<const double*> slab_pieces_;
   std::vector<int64_t> piece_begin_;
+  // With affine bodies, per term: its stencils over nodes, its slabs mapped to them (J^T H J) and
+  // its coupling stencils over nodes.
+  std::vector<MappedStencils> mapped_;
+  std::vector<std::vector<double>> mapped_slabs_;
+  std::vector<std::vector<int32_t>> mapped_coupling_;
   std::vector<double> elastic_values_;  // elastic Hessian values before merging with contact
   std::vector<double> group_term_;      // (num_groups) workspace of group_energy
   // The answer of end_iteration or take_changed_stencils (each read at once by Newton).

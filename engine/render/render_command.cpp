@@ -27,8 +27,18 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The points drawn: every point of a particle frame, the tets' corners of a tet frame (an affine
+// body's node points, its coordinates, are in no tet and are not drawn).
+std::vector<uint8_t> drawn_points(const FrameData& frame) {
+  std::vector<uint8_t> drawn(frame.num_points(), frame.tets.empty() ? 1 : 0);
+  for (int32_t v : frame.tets) drawn[v] = 1;
+  return drawn;
+}
+
 void bounds_of(const FrameData& frame, Eigen::Vector3d& lower, Eigen::Vector3d& upper) {
+  const std::vector<uint8_t> drawn = drawn_points(frame);
   for (int32_t v = 0; v < frame.num_points(); ++v) {
+    if (!drawn[v]) continue;
     const Eigen::Vector3d p(frame.points[3 * v], frame.points[3 * v + 1], frame.points[3 * v + 2]);
     lower = lower.cwiseMin(p);
     upper = upper.cwiseMax(p);
@@ -52,9 +62,11 @@ RenderSetting choose_render_setting(const RenderOptions& options, const SceneVie
                                      [&](const RenderInput::Plane& p) { return p.normal.dot(view.up) > 0.9; });
   if (!has_floor) {
     double lowest = std::numeric_limits<double>::infinity();
-    for (const FrameData* f : {&first, &last})
+    for (const FrameData* f : {&first, &last}) {
+      const std::vector<uint8_t> drawn = drawn_points(*f);
       for (int32_t v = 0; v < f->num_points(); ++v)
-        lowest = std::min(lowest, Eigen::Vector3d(&f->points[3 * v]).dot(view.up));
+        if (drawn[v]) lowest = std::min(lowest, Eigen::Vector3d(&f->points[3 * v]).dot(view.up));
+    }
     if (!std::isfinite(lowest)) lowest = 0.0;
     const double gap = 0.02 * std::max((upper - lower).norm(), 1e-3);
     s.planes.push_back({(lowest - gap) * view.up, view.up});

@@ -7,8 +7,10 @@
 #include "engine/mesh/surface.hpp"
 #include "engine/mesh/tet_mesh.hpp"
 #include "engine/scene/surface_body.hpp"
+#include "kernels/affine/affine_body.hpp"
 #include "kernels/distance/point_triangle_distance.hpp"
 #include "kernels/elasticity/elasticity.hpp"
+#include "kernels/projection/sym_eigen3.hpp"
 
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
@@ -221,12 +223,101 @@ void spin_about_centre_of_mass(const Eigen::Vector3d& omega, int32_t first, int3
     Eigen::Vector3d::Map(&state.v[3 * v]) += omega.cross(Eigen::Vector3d::Map(&model.rest_positions[3 * v]) - centre);
 }
 
+// Appends one copy of an affine body (Model::AffineBody): its mesh vertices as followers, then
+// its four nodes p, c_0, c_1, c_2 (engine/coordinate_map.hpp), at rest p = c (the centre of mass)
+// and c_j = the principal axes R e_j, with masses m and L_j = rho lambda_j (lambda_j the
+// eigenvalues of the second moment S = R diag(lambda) R^T, integrated exactly over the placed
+// tets). A follower gets y = R^T (X - c) and, like the nodes, the velocity of the rigid motion
+// (velocity, angular_velocity about c), so that x = J q and v = J q' hold from the start.
+std::string append_affine_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t scene_entry,
+                               Model& model, State& state) {
+  const TetMesh& mesh = *spec.mesh;
+  const SurfaceMesh& surface = *spec.surface;
+  const Material& material = model.materials[spec.material];
+  const int32_t n = mesh.num_vertices();
+  std::vector<double> placed(3 * int64_t{n});
+  for (int32_t v = 0; v < n; ++v) {
+    const Eigen::Vector3d p = spec.linear * Eigen::Vector3d::Map(&mesh.positions[3 * v]) + spec.translate + offset;
+    if (!p.allFinite())
+      return "vertex " + std::to_string(v) + " of the mesh is not finite once placed (translate, scale "
+             "or array spacing too large)";
+    Eigen::Vector3d::Map(&placed[3 * v]) = p;
+  }
+  const AffineMassProperties props = affine_mass_properties(placed, mesh.tets);
+  Eigen::Vector3d lambda;
+  Eigen::Matrix3d R;
+  sym_eigen3(props.second_moment, lambda, R);  // ascending
+  if (R.determinant() < 0.0) R.col(2) = -R.col(2);
+  if (!(props.volume > 0.0) || !(lambda[0] > 1e-12 * lambda[2]) || !R.allFinite())
+    return "the affine body has no volume, or is flat, once placed (volume " + show(json(props.volume)) +
+           " m^3): its mass matrix would be singular";
+
+  // Vertices appended before (tet bodies, other affine bodies' in full) are their own nodes.
+  model.follows.resize(model.num_vertices, Model::kOwnNode);
+  model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);
+  const int32_t body_id = static_cast<int32_t>(model.bodies.size());
+  const int32_t affine_id = static_cast<int32_t>(model.affine_bodies.size());
+  BodyRange range;
+  range.vertex_begin = model.num_vertices;
+  range.vertex_count = n + 4;
+  range.tet_begin = model.num_tets;
+  range.tet_count = 0;  // its tets gave its mass; it has no elastic tets
+  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
+  range.triangle_count = static_cast<int32_t>(surface.triangles.size() / 3);
+  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
+  range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
+  range.scene_entry = scene_entry;
+  range.material = spec.material;
+  const int32_t base = range.vertex_begin;
+  const Eigen::Vector3d& c = props.center;
+  const Eigen::Vector3d& w = spec.angular_velocity;
+
+  auto push_vertex = [&](const Eigen::Vector3d& x, const Eigen::Vector3d& v, double mass, int32_t follows,
+                         const Eigen::Vector3d& y) {
+    for (int d = 0; d < 3; ++d) {
+      model.rest_positions.push_back(x[d]);
+      state.v.push_back(v[d]);
+      model.follower_rest.push_back(y[d]);
+    }
+    model.mass.push_back(mass);
+    model.vertex_body.push_back(body_id);
+    model.dirichlet.push_back(-1);
+    model.follows.push_back(follows);
+  };
+  for (int32_t v = 0; v < n; ++v) {
+    const Eigen::Vector3d X = Eigen::Vector3d::Map(&placed[3 * v]);
+    push_vertex(X, spec.velocity + w.cross(X - c), 0.0, affine_id, R.transpose() * (X - c));
+  }
+  const double density = material.density;
+  push_vertex(c, spec.velocity, density * props.volume, Model::kCentreNode, Eigen::Vector3d::Zero());
+  for (int j = 0; j < 3; ++j)
+    push_vertex(R.col(j), w.cross(R.col(j)), density * lambda[j], Model::kAxisNode, Eigen::Vector3d::Zero());
+
+  AffineBody body;
+  body.body = body_id;
+  body.node = base + n;
+  body.follower_begin = base;
+  body.follower_count = n;
+  body.volume = props.volume;
+  body.stiffness = material.stiffness;
+  body.frame = R;
+  model.affine_bodies.push_back(body);
+  for (int32_t i : mesh.tets) model.affine_tets.push_back(base + i);
+  for (int32_t i : surface.triangles) model.surface_triangles.push_back(base + i);
+  for (int32_t i : surface.edges) model.surface_edges.push_back(base + i);
+  for (int32_t i : surface.vertices) model.surface_vertices.push_back(base + i);
+  model.num_vertices += range.vertex_count;
+  model.bodies.push_back(range);
+  return "";
+}
+
 // Appends one transformed copy of a body to the model and the initial state. Returns what is
 // wrong with the copy, empty when nothing is: a transform can overflow a position to infinity
 // (translate 1e308 plus an array spacing) or flatten tets that were fine in the mesh's own frame
 // (scale [1, 1, 1e-300]), and the elastic kernels need finite rest positions and invertible Dm.
 std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int32_t scene_entry, Model& model,
                         State& state) {
+  if (model.materials[spec.material].affine) return append_affine_body(spec, offset, scene_entry, model, state);
   const TetMesh& mesh = *spec.mesh;
   const SurfaceMesh& surface = *spec.surface;
   BodyRange range;
@@ -526,6 +617,12 @@ void build_model(const json& root, const Where& w, const fs::path& scene_dir, co
   // With contact, moving boundaries and obstacles push bodies: their vertices become unknowns
   // held by an augmented Lagrangian (Model::eliminated).
   for (DirichletMotion& motion : model.dirichlet_motions) motion.kinematic = contact_enabled && motion.moves();
+
+  // Vertices appended after the last affine body (tet bodies, obstacles) are their own nodes.
+  if (!model.affine_bodies.empty()) {
+    model.follows.resize(model.num_vertices, Model::kOwnNode);
+    model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);
+  }
 }
 
 }  // namespace nexdyn::scene_io

@@ -111,6 +111,24 @@ void check_solver_method(const Where& w, const Scene& scene) {
   }
 }
 
+// What affine bodies do not support yet is refused here, naming the key that asks for it.
+void check_affine_bodies(const Where& w, const Scene& scene) {
+  const Model& model = scene.model;
+  if (model.affine_bodies.empty()) return;
+  if (scene.solver.method != SolverMethod::newton)
+    w["solver"]["method"].fail("affine bodies (material model \"affine\") need the \"newton\" method");
+  for (const Joint& joint : model.joints)
+    for (int k = 0; k < joint.count; ++k)
+      if (model.follows_body(joint.vertex[k]))
+        w["joints"][joint.scene_entry].fail("joints on affine bodies are not supported yet");
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (model.dirichlet[v] >= 0 && model.follows[v] != Model::kOwnNode) {
+      const BodyRange& body = model.bodies[model.vertex_body[v]];
+      w["boundary"].fail("a boundary box holds a vertex of body " + std::to_string(body.scene_entry) +
+                         ", an affine body: boundaries on affine bodies are not supported yet");
+    }
+}
+
 // The start of the run: at rest positions with the bodies' velocities (already in initial.v) and
 // zero acceleration (the simulation sets the consistent one). With contact, the start must be
 // free of intersections.
@@ -148,12 +166,16 @@ Scene load_scene(const fs::path& file, const SceneLimits& limits, const fs::path
     read_friction_pairs(root["contact"]["friction_pairs"], w["contact"]["friction_pairs"], material_ids, scene.contact);
 
   if (mpm) {
+    for (const Material& m : scene.model.materials)
+      if (m.affine)
+        w["materials"][m.name]["model"].fail("\"affine\" is for bodies of tets; particle bodies (MPM) cannot use it");
     build_mpm_model(root, w, file.parent_path(), limits, scene);
     return scene;
   }
   build_model(root, w, file.parent_path(), material_ids, limits, scene.contact.enabled, mesh_cache_dir, scene.model,
               scene.initial);
   check_solver_method(w, scene);
+  check_affine_bodies(w, scene);
   set_initial_state(scene);
   return scene;
 }

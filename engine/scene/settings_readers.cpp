@@ -58,18 +58,39 @@ RayleighDamping read_damping(const json& j, const Where& w) {
   return damping;
 }
 
+// An affine material (issue 40): a density and the orthogonality stiffness kappa, no elastic
+// moduli (the body does not deform; kappa only holds it to a rotation).
+Material read_affine_material(const std::string& name, const json& j, const Where& w) {
+  for (const char* key : {"youngs", "poisson"})
+    if (j.contains(key))
+      w[key].fail("an \"affine\" material has no \"" + std::string(key) +
+                  "\": it does not deform; give \"stiffness\" (the orthogonality stiffness, Pa) instead");
+  if (j.contains("damping")) w["damping"].fail("an \"affine\" material does not support damping yet");
+  check_keys(j, w, {"model", "density", "stiffness"});
+  if (!j.contains("density")) w.fail("missing key \"density\"");
+  Material m;
+  m.name = name;
+  m.affine = true;
+  m.density = positive(j["density"], w["density"]);
+  m.stiffness = j.contains("stiffness") ? positive(j["stiffness"], w["stiffness"]) : kAffineStiffness;
+  return m;
+}
+
 Material read_material(const std::string& name, const json& j, const Where& w) {
+  if (!j.is_object()) w.fail("expected an object", j);
+  if (!j.contains("model")) w.fail("missing key \"model\"");
+  const std::string model = string(j["model"], w["model"]);
+  if (model == "affine") return read_affine_material(name, j, w);
   check_keys(j, w, {"model", "youngs", "poisson", "density", "damping"});
-  for (const char* key : {"model", "youngs", "poisson", "density"})
+  for (const char* key : {"youngs", "poisson", "density"})
     if (!j.contains(key)) w.fail(std::string("missing key \"") + key + "\"");
   Material m;
   m.name = name;
-  const std::string model = string(j["model"], w["model"]);
   m.arap = model == "arap";
   const auto parsed = m.arap ? std::optional(MaterialModel::corotated) : material_model_from_name(model);
   if (!parsed)
     w["model"].fail("unknown material model " + show(json(model)) +
-                    " (known: linear, stvk, corotated, neohookean, arap)");
+                    " (known: linear, stvk, corotated, neohookean, arap, affine)");
   m.model = *parsed;
   m.youngs = positive(j["youngs"], w["youngs"]);
   m.poisson = number(j["poisson"], w["poisson"]);

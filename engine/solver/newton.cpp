@@ -57,8 +57,9 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   const int64_t n = model.num_dofs();
   constrained_dof_.assign(n, 0);
   held_in_islands_.assign(model.num_vertices, 0);
+  // Followers of affine bodies are no unknowns either: they move with their bodies' nodes.
   for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.eliminated(v))
+    if (model.eliminated(v) || model.follows_body(v))
       for (int d = 0; d < 3; ++d) constrained_dof_[3 * v + d] = 1;
   grad_.resize(n);
   direction_.resize(n);
@@ -69,7 +70,8 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
 
 void NewtonSolver::hold(const std::vector<int32_t>& vertices, bool held, bool in_islands) {
   for (int32_t v : vertices) {
-    for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = held;
+    const bool constrained = held || model_.follows_body(v);  // a follower is never an unknown
+    for (int d = 0; d < 3; ++d) constrained_dof_[3 * int64_t{v} + d] = constrained;
     held_in_islands_[v] = held && in_islands;
   }
   collect_constrained_values();
@@ -123,6 +125,9 @@ void NewtonSolver::update_subset() {
   for (int32_t i : active_)
     for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
       active[islands_.vertices()[k]] = 1;
+  // An affine body's followers are assembled with its nodes (their terms fold onto the nodes).
+  for (const AffineBody& body : model_.affine_bodies)
+    if (active[body.node]) std::fill_n(active.begin() + body.follower_begin, body.follower_count, uint8_t{1});
   subset_.vertices.clear();
   subset_.tets.clear();
   for (int32_t v = 0; v < model_.num_vertices; ++v)
@@ -135,8 +140,15 @@ void NewtonSolver::update_subset() {
 }
 
 void NewtonSolver::thaw(const std::vector<int32_t>& stencils) {
-  for (int32_t v : stencils)
-    if (v >= 0) vertex_token_[v] = 0;
+  for (int32_t v : stencils) {
+    if (v < 0) continue;
+    if (model_.follows_body(v)) {  // no island of its own: its body's nodes'
+      const int32_t node = model_.affine_bodies[model_.follows[v]].node;
+      std::fill_n(vertex_token_.begin() + node, 4, 0);
+      continue;
+    }
+    vertex_token_[v] = 0;
+  }
 }
 
 bool NewtonSolver::prepare_potential(const double* x, int iteration, NewtonResult& result) {
@@ -291,15 +303,32 @@ bool NewtonSolver::mark_moving_islands(const NewtonSettings& settings, NewtonRes
   // where it is (p = 0 there) until it changes or kappa does.
   result.increment = 0.0;
   island_moves_.assign(islands_.num_islands(), 0);
+  for (int32_t i : active_)
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
+      for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] *= -1.0;
+  // Followers move with their bodies (p = J p_nodes). An affine body's increment is its
+  // followers' largest motion, in metres like a tet vertex's: its axis nodes' entries are
+  // dimensionless (columns of A R), so they do not count themselves.
+  const CoordinateMap& map = potential_.map();
+  map.follow(direction_.data());
+  auto largest = [&](int32_t v) {
+    double step = 0.0;
+    for (int d = 0; d < 3; ++d) step = std::max(step, std::abs(direction_[3 * int64_t{v} + d]));
+    return step;
+  };
+  auto for_followers = [&](int32_t node, auto&& f) {  // node: an affine body's p, else nothing
+    if (model_.follows.empty() || model_.follows[node] != Model::kCentreNode) return;
+    const BodyRange& body = model_.bodies[model_.vertex_body[node]];
+    for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count - 4; ++v) f(v);
+  };
   bool any_moving = false;
   for (int32_t i : active_) {
     double max_step = 0.0;
-    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
-      for (int d = 0; d < 3; ++d) {
-        double& p = direction_[3 * int64_t{islands_.vertices()[k]} + d];
-        p = -p;
-        max_step = std::max(max_step, std::abs(p));
-      }
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k) {
+      const int32_t v = islands_.vertices()[k];
+      if (!model_.axis_node(v)) max_step = std::max(max_step, largest(v));
+      for_followers(v, [&](int32_t f) { max_step = std::max(max_step, largest(f)); });
+    }
     const double increment = max_step / settings.dt;
     result.increment = std::max(result.increment, increment);
     if (increment >= settings.tolerance) {
@@ -308,8 +337,13 @@ bool NewtonSolver::mark_moving_islands(const NewtonSettings& settings, NewtonRes
       continue;
     }
     mark_converged(i);
-    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k)
-      for (int d = 0; d < 3; ++d) direction_[3 * int64_t{islands_.vertices()[k]} + d] = 0.0;
+    for (int32_t k = islands_.vertex_ptr()[i]; k < islands_.vertex_ptr()[i + 1]; ++k) {
+      const int32_t v = islands_.vertices()[k];
+      for (int d = 0; d < 3; ++d) direction_[3 * int64_t{v} + d] = 0.0;
+      for_followers(v, [&](int32_t f) {
+        for (int d = 0; d < 3; ++d) direction_[3 * int64_t{f} + d] = 0.0;
+      });
+    }
   }
   return any_moving;
 }
@@ -323,6 +357,8 @@ int32_t NewtonSolver::build_groups(const double* x) {
     const int32_t i = islands_.island_of(v);
     vertex_moves_[v] = i >= 0 && island_moves_[i];
   }
+  for (const AffineBody& body : model_.affine_bodies)
+    std::fill_n(vertex_moves_.begin() + body.follower_begin, body.follower_count, vertex_moves_[body.node]);
   potential_.sweep(x, direction_.data(), vertex_moves_.data());
   groups_.reset(num_islands);
   if (const ContactCandidates* c = potential_.sweep_candidates()) {
@@ -330,7 +366,9 @@ int32_t NewtonSolver::build_groups(const double* x) {
     auto join = [&](std::initializer_list<int32_t> vertices) {
       int32_t first = -1;
       for (int32_t v : vertices) {
-        const int32_t i = island_of[v];
+        // A follower is in its body's island (that of its nodes).
+        const int32_t node = model_.follows_body(v) ? model_.affine_bodies[model_.follows[v]].node : v;
+        const int32_t i = island_of[node];
         if (i < 0 || !island_moves_[i]) continue;
         if (first < 0) first = i;
         else groups_.join(first, i);
@@ -358,6 +396,7 @@ int32_t NewtonSolver::build_groups(const double* x) {
     const int32_t i = islands_.island_of(v);
     group_of_vertex_[v] = i < 0 ? -1 : group_of_island_[i];
   }
+  potential_.map().follow_groups(group_of_vertex_.data());
   return num_groups;
 }
 
@@ -456,6 +495,8 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     if (record) record->ccd_cap = group_alpha_;
     if (!line_search(x.data(), num_groups, result)) return result;
     x.swap(trial_);
+    // Followers exactly at J q again (the line search moved them along J p, up to rounding).
+    potential_.map().follow(x.data());
     if (record) {
       record->slope = group_slope_;
       record->start_energy = group_start_;

@@ -1,5 +1,6 @@
 #include "engine/terms/barrier_term.hpp"
 
+#include "engine/coordinate_map.hpp"
 #include "kernels/barrier/barrier.hpp"
 
 #include <Eigen/Core>
@@ -14,10 +15,12 @@ BarrierTerm::BarrierTerm(const Model& model, BarrierPotential& contact, StepHist
   bbox_diagonal_ = bodies_bbox_diagonal(model);
   double mass = 0.0;
   int64_t free = 0;
+  // An affine body counts as its mass spread over its followers, like a tet body's lumped mass
+  // over its vertices (its nodes are coordinates, not points).
   for (int32_t v = 0; v < model.num_vertices; ++v)
     if (model.dirichlet[v] < 0) {
-      mass += model.mass[v];
-      ++free;
+      mass += model.translational_mass(v);
+      free += model.follows.empty() || model.follows[v] >= 0 || model.follows[v] == Model::kOwnNode;
     }
   average_mass_ = free > 0 ? mass / free : 1.0;
 }
@@ -42,6 +45,10 @@ void BarrierTerm::begin_solve(const double* x, const std::function<void(double*)
   grad_energy /= contact_scale_;
   contact_.assemble(x, 1.0, false);
   contact_.add_gradient(grad_barrier.data());
+  // With affine bodies both gradients over nodes (the barrier's acts on followers).
+  const CoordinateMap map(model_);
+  map.fold_gradient(grad_energy.data());
+  map.fold_gradient(grad_barrier.data());
   for (int32_t v = 0; v < model_.num_vertices; ++v)
     if (model_.dirichlet[v] >= 0) {
       grad_energy.segment<3>(3 * int64_t{v}).setZero();

@@ -22,7 +22,9 @@ double InertiaTerm::energy_of(const double* x, int64_t begin, int64_t end) const
       kinetic += dx * dx;
       work += g[d] * dx;
     }
-    sum += m[v] * (0.5 * inertia_ * kinetic - scale_ * work);
+    // Gravity does not pull an affine body's axis nodes (Model::axis_node).
+    const double gravity_scale = model_.axis_node(static_cast<int32_t>(v)) ? 0.0 : scale_;
+    sum += m[v] * (0.5 * inertia_ * kinetic - gravity_scale * work);
   }
   return sum;
 }
@@ -40,11 +42,13 @@ void InertiaTerm::add_gradient_of(const double* x, double weight, double* grad, 
   const double* xt = x_tilde_->data();
   const double* m = model_.mass.data();
   const double g[3] = {model_.gravity.x(), model_.gravity.y(), model_.gravity.z()};
-  for (int64_t v = begin; v < end; ++v)
+  for (int64_t v = begin; v < end; ++v) {
+    const double gravity_scale = model_.axis_node(static_cast<int32_t>(v)) ? 0.0 : scale_;
     for (int d = 0; d < 3; ++d) {
       const int64_t i = 3 * v + d;
-      grad[i] += weight * m[v] * (inertia_ * (x[i] - xt[i]) - scale_ * g[d]);
+      grad[i] += weight * m[v] * (inertia_ * (x[i] - xt[i]) - gravity_scale * g[d]);
     }
+  }
 }
 
 void InertiaTerm::add_gradient(const double* x, double weight, double* grad) {
