@@ -252,7 +252,7 @@ std::string append_affine_body(const BodySpec& spec, const Eigen::Vector3d& offs
     return "the affine body has no volume, or is flat, once placed (volume " + show(json(props.volume)) +
            " m^3): its mass matrix would be singular";
 
-  // Vertices appended before (tet bodies, other affine bodies' in full) are their own nodes.
+  // Vertices appended since the last affine body (tet bodies) are their own nodes.
   model.follows.resize(model.num_vertices, Model::kOwnNode);
   model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);
   const int32_t body_id = static_cast<int32_t>(model.bodies.size());
@@ -407,6 +407,9 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
     // counts "obstacles" entries, not "bodies" entries, so "body" must never match it.
     if (body.obstacle) continue;
     if (only_entry && body.scene_entry != *only_entry) continue;
+    // An affine body's nodes are coordinates, not points of it: a box never selects them (its
+    // followers are points, and boundaries on them are refused: scene.cpp).
+    if (!model.follows.empty() && model.follows[v] < Model::kOwnNode) continue;
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&model.rest_positions[3 * v]);
     if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) {
       if (model.dirichlet[v] >= 0 && model.dirichlet[v] != id)
@@ -466,6 +469,8 @@ const BodyRange& joint_body(const json& value, const Where& w, const Model& mode
     if (found) w.fail("body " + std::to_string(entry) + " is an \"array\" of several bodies; a joint needs one", value);
     found = &body;
   }
+  // A joint point is carried by a tet of its body; an affine body has none in the model.
+  if (model.materials[found->material].affine) w.fail("joints on affine bodies are not supported yet", value);
   return *found;
 }
 
@@ -593,6 +598,11 @@ void build_model(const json& root, const Where& w, const fs::path& scene_dir, co
   if (!bodies.is_array() || bodies.empty()) w["bodies"].fail("expected a non-empty array of bodies");
   append_bodies(bodies, w["bodies"], scene_dir, material_ids, limits, surface_cache_dir, model, initial);
   const int64_t num_scene_bodies = static_cast<int64_t>(bodies.size());
+  // Tet bodies after the last affine body are their own nodes (boundaries below read follows).
+  if (!model.affine_bodies.empty()) {
+    model.follows.resize(model.num_vertices, Model::kOwnNode);
+    model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);
+  }
 
   if (root.contains("boundary")) {
     const json& boundary = root["boundary"];
@@ -618,7 +628,7 @@ void build_model(const json& root, const Where& w, const fs::path& scene_dir, co
   // held by an augmented Lagrangian (Model::eliminated).
   for (DirichletMotion& motion : model.dirichlet_motions) motion.kinematic = contact_enabled && motion.moves();
 
-  // Vertices appended after the last affine body (tet bodies, obstacles) are their own nodes.
+  // Obstacle vertices, appended after the bodies, are their own nodes.
   if (!model.affine_bodies.empty()) {
     model.follows.resize(model.num_vertices, Model::kOwnNode);
     model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);

@@ -117,10 +117,10 @@ void check_affine_bodies(const Where& w, const Scene& scene) {
   if (model.affine_bodies.empty()) return;
   if (scene.solver.method != SolverMethod::newton)
     w["solver"]["method"].fail("affine bodies (material model \"affine\") need the \"newton\" method");
-  for (const Joint& joint : model.joints)
-    for (int k = 0; k < joint.count; ++k)
-      if (model.follows_body(joint.vertex[k]))
-        w["joints"][joint.scene_entry].fail("joints on affine bodies are not supported yet");
+  // Without inertia nothing but contact holds an affine body's rotation (its orthogonality
+  // potential is flat along rotations), and affine bodies cannot be held by boundaries yet.
+  if (scene.time.integrator.is_static)
+    w["time"]["integrator"].fail("affine bodies need a dynamic integrator: a static solve leaves their rotation free");
   for (int32_t v = 0; v < model.num_vertices; ++v)
     if (model.dirichlet[v] >= 0 && model.follows[v] != Model::kOwnNode) {
       const BodyRange& body = model.bodies[model.vertex_body[v]];

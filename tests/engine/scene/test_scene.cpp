@@ -538,3 +538,40 @@ TEST_CASE("angular_velocity spins each body about its own centre of mass: moment
   CHECK(error_of(scene_with("", kMaterials, R"([{ "box": { "size": [1, 1, 1], "cells": [1, 1, 1] }, "material": "m",
       "angular_velocity": [1, 2] }])")).find("angular_velocity") != std::string::npos);
 }
+
+TEST_CASE("scene: an affine material refuses what affine bodies do not have, naming the key") {
+  const std::string affine = R"("materials": { "m": { "model": "affine", "density": 1000 } })";
+  const std::string box = std::string("[") + kBox + "]";
+  // Loads as it is, with its stiffness default.
+  CHECK(error_of(scene_with("", affine, box)).empty());
+  const Scene scene = test::scene_from_json(scene_with("", affine, box), "affine_ok");
+  REQUIRE(scene.model.affine_bodies.size() == 1);
+  CHECK(scene.model.affine_bodies[0].stiffness == kAffineStiffness);
+  struct Case { std::string json; std::vector<std::string> must_contain; };
+  const std::vector<Case> cases = {
+      {scene_with("", R"("materials": { "m": { "model": "affine", "density": 1000, "youngs": 1e9 } })", box),
+       {"materials.m.youngs", "no \"youngs\"", "stiffness"}},
+      {scene_with("", R"("materials": { "m": { "model": "affine", "density": 1000, "poisson": 0.3 } })", box),
+       {"materials.m.poisson"}},
+      {scene_with("", R"("materials": { "m": { "model": "affine", "density": 1000, "damping": { "mass": 1 } } })", box),
+       {"materials.m.damping", "affine"}},
+      {scene_with("", R"("materials": { "m": { "model": "affine", "stiffness": 1e8 } })", box), {"density"}},
+      {scene_with("", R"("materials": { "m": { "model": "affine", "density": 1000, "stiffness": -1 } })", box),
+       {"materials.m.stiffness"}},
+      {scene_with(R"("time": { "integrator": "static" })", affine, box), {"time.integrator", "dynamic"}},
+      {scene_with(R"("solver": { "method": "linearized" })", affine, box), {"solver.method", "newton"}},
+      {scene_with(R"("boundary": [ { "box_min": [-1, -1, -1], "box_max": [1, 1, 1], "fix": true } ])", affine, box),
+       {"boundary", "affine"}},
+      {scene_with(R"("joints": [ { "type": "pin", "body": 0, "point": [0, 0, 0] } ])", affine, box),
+       {"joints[0].body", "affine"}},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.json);
+    const std::string message = error_of(c.json);
+    REQUIRE_FALSE(message.empty());
+    for (const std::string& part : c.must_contain) {
+      CAPTURE(part);
+      CHECK(message.find(part) != std::string::npos);
+    }
+  }
+}
