@@ -8,7 +8,6 @@
 #include "engine/mesh/tet_mesh.hpp"
 #include "engine/scene/surface_body.hpp"
 #include "kernels/affine/affine_body.hpp"
-#include "kernels/distance/point_triangle_distance.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 #include "kernels/projection/sym_eigen3.hpp"
 
@@ -223,6 +222,24 @@ void spin_about_centre_of_mass(const Eigen::Vector3d& omega, int32_t first, int3
     Eigen::Vector3d::Map(&state.v[3 * v]) += omega.cross(Eigen::Vector3d::Map(&model.rest_positions[3 * v]) - centre);
 }
 
+// The range a body copy will take at the end of the model's arrays: `vertices` vertices, `tets`
+// tets and its surface's triangles and edges.
+BodyRange next_body_range(const Model& model, const SurfaceMesh& surface, int32_t vertices, int32_t tets,
+                          int32_t scene_entry, int32_t material) {
+  BodyRange range;
+  range.vertex_begin = model.num_vertices;
+  range.vertex_count = vertices;
+  range.tet_begin = model.num_tets;
+  range.tet_count = tets;
+  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
+  range.triangle_count = static_cast<int32_t>(surface.triangles.size() / 3);
+  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
+  range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
+  range.scene_entry = scene_entry;
+  range.material = material;
+  return range;
+}
+
 // Appends one copy of an affine body (Model::AffineBody): its mesh vertices as followers, then
 // its four nodes p, c_0, c_1, c_2 (engine/coordinate_map.hpp), at rest p = c (the centre of mass)
 // and c_j = the principal axes R e_j, with masses m and L_j = rho lambda_j (lambda_j the
@@ -257,17 +274,8 @@ std::string append_affine_body(const BodySpec& spec, const Eigen::Vector3d& offs
   model.follower_rest.resize(3 * int64_t{model.num_vertices}, 0.0);
   const int32_t body_id = static_cast<int32_t>(model.bodies.size());
   const int32_t affine_id = static_cast<int32_t>(model.affine_bodies.size());
-  BodyRange range;
-  range.vertex_begin = model.num_vertices;
-  range.vertex_count = n + 4;
-  range.tet_begin = model.num_tets;
-  range.tet_count = 0;  // its tets gave its mass; it has no elastic tets
-  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
-  range.triangle_count = static_cast<int32_t>(surface.triangles.size() / 3);
-  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
-  range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
-  range.scene_entry = scene_entry;
-  range.material = spec.material;
+  // Its tets gave its mass: it has no elastic tets.
+  const BodyRange range = next_body_range(model, surface, n + 4, 0, scene_entry, spec.material);
   const int32_t base = range.vertex_begin;
   const Eigen::Vector3d& c = props.center;
   const Eigen::Vector3d& w = spec.angular_velocity;
@@ -320,17 +328,8 @@ std::string append_body(const BodySpec& spec, const Eigen::Vector3d& offset, int
   if (model.materials[spec.material].affine) return append_affine_body(spec, offset, scene_entry, model, state);
   const TetMesh& mesh = *spec.mesh;
   const SurfaceMesh& surface = *spec.surface;
-  BodyRange range;
-  range.vertex_begin = model.num_vertices;
-  range.vertex_count = mesh.num_vertices();
-  range.tet_begin = model.num_tets;
-  range.tet_count = mesh.num_tets();
-  range.triangle_begin = static_cast<int32_t>(model.surface_triangles.size() / 3);
-  range.triangle_count = static_cast<int32_t>(surface.triangles.size() / 3);
-  range.edge_begin = static_cast<int32_t>(model.surface_edges.size() / 2);
-  range.edge_count = static_cast<int32_t>(surface.edges.size() / 2);
-  range.scene_entry = scene_entry;
-  range.material = spec.material;
+  const BodyRange range =
+      next_body_range(model, surface, mesh.num_vertices(), mesh.num_tets(), scene_entry, spec.material);
   const int32_t body_id = static_cast<int32_t>(model.bodies.size());
   const int32_t base = range.vertex_begin;
 
@@ -423,106 +422,6 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
   model.dirichlet_motions.push_back(motion);
 }
 
-// ---- joints --------------------------------------------------------------------------------------
-
-// The tet of body `b` nearest to `point` (distance 0 when inside; the lowest index on ties) and
-// the point's barycentric weights in it, extrapolated when it lies outside.
-void attach_to_body(const Model& model, const BodyRange& body, const Eigen::Vector3d& point, int32_t (&vertex)[4],
-                    double (&weight)[4]) {
-  auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * int64_t{v}]); };
-  double best = std::numeric_limits<double>::infinity();
-  int32_t best_tet = body.tet_begin;
-  for (int32_t t = body.tet_begin; t < body.tet_begin + body.tet_count && best > 0.0; ++t) {
-    const int32_t* c = &model.tets[4 * int64_t{t}];
-    // Inside: every face sees the point on its inner side; else the nearest face's distance.
-    double d = 0.0;
-    bool inside = true;
-    constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-    double nearest_face = std::numeric_limits<double>::infinity();
-    for (const auto& f : kFace) {
-      const Eigen::Vector3d a = X(c[f[0]]), b = X(c[f[1]]), e = X(c[f[2]]);
-      inside = inside && (b - a).cross(e - a).dot(point - a) <= 0.0;
-      nearest_face = std::min(nearest_face, point_triangle_distance(point, a, b, e));
-    }
-    if (!inside) d = nearest_face;
-    if (d < best) {
-      best = d;
-      best_tet = t;
-    }
-  }
-  const int32_t* c = &model.tets[4 * int64_t{best_tet}];
-  Eigen::Matrix3d edges;
-  edges << X(c[1]) - X(c[0]), X(c[2]) - X(c[0]), X(c[3]) - X(c[0]);
-  const Eigen::Vector3d l = edges.inverse() * (point - X(c[0]));
-  weight[0] = 1.0 - l.sum();
-  for (int k = 0; k < 3; ++k) weight[k + 1] = l[k];
-  for (int k = 0; k < 4; ++k) vertex[k] = c[k];
-}
-
-// The one body made from "bodies" entry `entry` (an "array" entry makes several: ambiguous).
-const BodyRange& joint_body(const json& value, const Where& w, const Model& model, int64_t num_scene_bodies) {
-  const int64_t entry = integer(value, w, 0);
-  if (entry >= num_scene_bodies) w.fail("no such body (the scene has " + std::to_string(num_scene_bodies) + ")", value);
-  const BodyRange* found = nullptr;
-  for (const BodyRange& body : model.bodies) {
-    if (body.obstacle || body.scene_entry != entry) continue;
-    if (found) w.fail("body " + std::to_string(entry) + " is an \"array\" of several bodies; a joint needs one", value);
-    found = &body;
-  }
-  // A joint point is carried by a tet of its body; an affine body has none in the model.
-  if (model.materials[found->material].affine) w.fail("joints on affine bodies are not supported yet", value);
-  return *found;
-}
-
-// A ball joint's "bodies" (`pair`, at `w`): the first body's weights, then the second's negated.
-void attach_ball(const json& pair, const Where& w, const Eigen::Vector3d& point, const Model& model,
-                 int64_t num_scene_bodies, Joint& joint) {
-  if (!pair.is_array() || pair.size() != 2) w.fail("expected two body indices", pair);
-  const BodyRange& a = joint_body(pair[0], w[0], model, num_scene_bodies);
-  const BodyRange& b = joint_body(pair[1], w[1], model, num_scene_bodies);
-  if (&a == &b) w.fail("a ball joint needs two different bodies", pair);
-  joint.type = JointType::ball;
-  joint.count = 8;
-  for (int side = 0; side < 2; ++side) {
-    int32_t v[4];
-    double weight[4];
-    attach_to_body(model, side == 0 ? a : b, point, v, weight);
-    for (int k = 0; k < 4; ++k) {
-      joint.vertex[4 * side + k] = v[k];
-      joint.coefficient[4 * side + k] = side == 0 ? weight[k] : -weight[k];
-    }
-  }
-}
-
-void read_joint(const json& j, const Where& w, int32_t scene_entry, Model& model, int64_t num_scene_bodies) {
-  check_keys(j, w, {"type", "body", "bodies", "point"});
-  if (!j.contains("type")) w.fail("missing key \"type\" (\"pin\" or \"ball\")");
-  if (!j.contains("point")) w.fail("missing key \"point\"");
-  const std::string type = string(j["type"], w["type"]);
-  const Eigen::Vector3d point = vec3(j["point"], w["point"]);
-  Joint joint;
-  joint.scene_entry = scene_entry;
-  if (type == "pin") {
-    if (!j.contains("body") || j.contains("bodies")) w.fail("a pin takes \"body\" (one index), not \"bodies\"");
-    joint.type = JointType::pin;
-    joint.count = 4;
-    int32_t v[4];
-    double weight[4];
-    attach_to_body(model, joint_body(j["body"], w["body"], model, num_scene_bodies), point, v, weight);
-    for (int k = 0; k < 4; ++k) {
-      joint.vertex[k] = v[k];
-      joint.coefficient[k] = weight[k];
-    }
-    joint.offset = -point;
-  } else if (type == "ball") {
-    if (!j.contains("bodies") || j.contains("body")) w.fail("a ball joint takes \"bodies\" (two indices), not \"body\"");
-    attach_ball(j["bodies"], w["bodies"], point, model, num_scene_bodies, joint);
-  } else {
-    w["type"].fail("expected \"pin\" or \"ball\"", j["type"]);
-  }
-  model.joints.push_back(joint);
-}
-
 }  // namespace
 
 // ---- shared with build_obstacles.cpp -------------------------------------------------------------
@@ -612,12 +511,7 @@ void build_model(const json& root, const Where& w, const fs::path& scene_dir, co
   }
 
   // Joints, on the bodies' tets.
-  if (root.contains("joints")) {
-    const json& joints = root["joints"];
-    if (!joints.is_array()) w["joints"].fail("expected an array", joints);
-    for (size_t i = 0; i < joints.size(); ++i)
-      read_joint(joints[i], w["joints"][i], static_cast<int32_t>(i), model, num_scene_bodies);
-  }
+  if (root.contains("joints")) append_joints(root["joints"], w["joints"], model, num_scene_bodies);
 
   // Obstacles, after every body and every boundary entry: "bodies" entries keep their body
   // indices, and the shared fixed motion of obstacle meshes comes after the "boundary" motions.

@@ -7,7 +7,8 @@
 // checking that placing did not overflow a position or flatten a tet. Obstacle meshes (.obj
 // triangles or the boundary of a .msh) come after all bodies as bodies without tets: mass 0,
 // every vertex on a Dirichlet motion, one shared fixed motion for the static ones
-// (build_obstacles.cpp); obstacle planes go to Model::obstacle_planes.
+// (build_obstacles.cpp); obstacle planes go to Model::obstacle_planes; joints are attached to
+// the tets of their bodies (build_joints.cpp).
 #pragma once
 
 #include "engine/model.hpp"
@@ -67,5 +68,9 @@ void check_size(const Model& model, int64_t vertices, int64_t tets, const SceneL
 void append_obstacles(const json& obstacles, const Where& w, const std::filesystem::path& scene_dir,
                       const MaterialIds& material_ids, const SceneLimits& limits, Model& model,
                       State& initial);
+
+// Appends the "joints" array `joints` (at `w`) on the bodies already in `model`, of which the
+// scene has `num_scene_bodies` entries (build_joints.cpp).
+void append_joints(const json& joints, const Where& w, Model& model, int64_t num_scene_bodies);
 
 }  // namespace nexdyn::scene_io
