@@ -146,8 +146,10 @@ class Simulation {
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
   // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
   void constrain_initial_acceleration();
-  // Affine bodies' start-of-run acceleration: that of their rigid rotation (see there).
-  void add_rigid_rotation_acceleration();
+  // Affine bodies' axis nodes: a = the acceleration of their rigid rotation at positions x, for
+  // the angular velocity of (x_motion, v_motion); followers follow (see there).
+  void set_rigid_rotation_acceleration(const std::vector<double>& x_motion, const std::vector<double>& v_motion,
+                                       const std::vector<double>& x, std::vector<double>& a) const;
 
   // ---- energy accounting and measurement (simulation_energy.cpp)
   // Adds the boundary work (without the held kinetic energy), friction dissipation and kappa
