@@ -559,6 +559,7 @@ TEST_CASE("scene: an affine material refuses what affine bodies do not have, nam
       {scene_with("", R"("materials": { "m": { "model": "affine", "density": 1000, "stiffness": -1 } })", box),
        {"materials.m.stiffness"}},
       {scene_with(R"("time": { "integrator": "static" })", affine, box), {"time.integrator", "dynamic"}},
+      {scene_with(R"("time": { "integrator": "central_difference" })", affine, box), {"time.integrator", "implicit"}},
       {scene_with(R"("solver": { "method": "linearized" })", affine, box), {"solver.method", "newton"}},
       {scene_with(R"("boundary": [ { "box_min": [-1, -1, -1], "box_max": [1, 1, 1], "fix": true } ])", affine, box),
        {"boundary", "affine"}},
