@@ -10,6 +10,13 @@ the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with fric
 
     python3 scripts/make_pile.py 1000                       # scenes/stress/pile_1000.json
     python3 scripts/make_pile.py 10000 --steps 20 --out /tmp/pile_10000.json
+    python3 scripts/make_pile.py 1000 --affine --integrator default --steps 300   # pile_1000_affine
+    python3 scripts/make_pile.py 100 --affine --out /tmp/pile_100_affine.json
+    python3 scripts/make_pile.py 100 --youngs 1e9 --out /tmp/pile_100_e1e9.json
+
+`--affine [KAPPA]` makes every body affine (material "stone", density 1000, orthogonality stiffness
+KAPPA Pa, or the engine's default); `--youngs` sets the rubber's Young's modulus; `--integrator`
+names the time integrator (`default`: leave the key out, the engine's default).
 
 Mesh paths are written relative to the output file, so keep it in scenes/stress/ or pass --out
 inside scenes/; the meshes are scenes/meshes/torus.msh, cube.msh and pyramid.msh.
@@ -40,9 +47,10 @@ def rotation(i):
     return angles
 
 
-def pile(count, steps, mesh_dir):
+def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integrator="implicit_euler"):
     columns = max(2, math.ceil(1.3 * count ** (1.0 / 3.0)))
     half = 0.5 * columns * SPACING + 0.1
+    material = "stone" if affine else "rubber"
     bodies = []
     for i in range(count):
         layer, cell = divmod(i, columns * columns)
@@ -61,23 +69,35 @@ def pile(count, steps, mesh_dir):
             body["scale"] = shape["scale"]
             offset = [-c * shape["scale"] for c in shape.get("centre", [0.0, 0.0, 0.0])]
             translate = [c + o for c, o in zip(centre, rotate(offset, rotation(i)))]
-        body["material"] = "rubber"
+        body["material"] = material
         body["rotate_deg"] = rotation(i)
         body["translate"] = [round(t, 9) for t in translate]
         bodies.append(body)
     walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
              ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
+    time = {"dt": 0.01, "steps": steps}
+    if integrator != "default":
+        time["integrator"] = integrator
     return {
-        "name": f"pile_{count}",
+        "name": f"pile_{count}_affine" if affine else f"pile_{count}",
         "gravity": [0, -9.81, 0],
-        "time": {"dt": 0.01, "steps": steps, "integrator": "implicit_euler"},
+        "time": time,
         "solver": {"tolerance": 1e-3, "max_iterations": 200},
         "contact": {"dhat": 1e-3, "friction": 0.3},
-        "materials": {"rubber": {"model": "neohookean", "youngs": 1e6, "poisson": 0.4, "density": 1000}},
+        "materials": {material: material_of(affine, stiffness, youngs)},
         "bodies": bodies,
         "obstacles": [{"plane": {"point": p, "normal": n}} for p, n in walls],
-        "output": {"every": 10, "formats": ["vtu", "obj"]},
+        "output": {"every": 10, "formats": ["vtu", "obj", "bodies"] if affine else ["vtu", "obj"]},
     }
+
+
+def material_of(affine, stiffness, youngs):
+    if affine:
+        stone = {"model": "affine", "density": 1000}
+        if stiffness is not None:
+            stone["stiffness"] = stiffness
+        return stone
+    return {"model": "neohookean", "youngs": youngs, "poisson": 0.4, "density": 1000}
 
 
 def rotate(v, degrees):
@@ -94,15 +114,23 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("count", type=int, help="number of bodies (1 to 100000)")
     parser.add_argument("--steps", type=int, default=100)
-    parser.add_argument("--out", help="default: scenes/stress/pile_COUNT.json")
+    parser.add_argument("--out", help="default: scenes/stress/pile_COUNT.json (pile_COUNT_affine.json)")
+    parser.add_argument("--affine", nargs="?", const=-1.0, type=float, metavar="KAPPA",
+                        help="affine bodies, with this orthogonality stiffness [Pa] if given")
+    parser.add_argument("--youngs", type=float, default=1e6, help="the rubber's Young's modulus [Pa]")
+    parser.add_argument("--integrator", default="implicit_euler", help="time.integrator ('default': none)")
     args = parser.parse_args()
     if not 1 <= args.count <= 100000:
         raise SystemExit(f"count: expected 1 to 100000, got {args.count}")
     root = pathlib.Path(__file__).resolve().parent.parent
-    out = pathlib.Path(args.out) if args.out else root / "scenes" / "stress" / f"pile_{args.count}.json"
+    affine = args.affine is not None
+    name = f"pile_{args.count}_affine" if affine else f"pile_{args.count}"
+    out = pathlib.Path(args.out) if args.out else root / "scenes" / "stress" / f"{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     mesh_dir = os.path.relpath(root / "scenes" / "meshes", out.parent.resolve()) + "/"
-    out.write_text(json.dumps(pile(args.count, args.steps, mesh_dir), indent=1) + "\n")
+    stiffness = args.affine if affine and args.affine > 0 else None
+    scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator)
+    out.write_text(json.dumps(scene, indent=1) + "\n")
     print(f"{out}: {args.count} bodies")
 
 
