@@ -1,4 +1,4 @@
-// Kill and resume, end to end: `nexdyn run` killed with SIGKILL at chosen steps (the run sends
+// Kill and resume, end to end (tet scenes, and one with affine bodies beside tet ones): `nexdyn run` killed with SIGKILL at chosen steps (the run sends
 // itself the signal through the NEXDYN_TEST_SIGNAL hook, engine/run.hpp, so every kill lands
 // where the test says on any machine) and continued with `nexdyn resume` writes the same
 // stats.csv (all but wall_seconds), frames and scene.pvd as a run never stopped; SIGTERM stops a run with a checkpoint; a damaged newest checkpoint is
@@ -150,6 +150,13 @@ TEST_CASE("kill and resume: the cube stack killed at chosen steps writes what an
 TEST_CASE("kill and resume: the 100-body pile killed at chosen steps writes what an unstopped run does") {
   check_kill_and_resume({"run", test::scene_path("stress/pile_100.json").string(), "--steps", "30",
                          "--checkpoint-every", "4", "--threads", "2"}, 30, 4, 3, 7);
+}
+
+TEST_CASE("kill and resume: soft bodies landing on affine ones, killed at chosen steps, write what an unstopped run does") {
+  // mixed_drop: affine nodes and followers, tet bodies and their contacts through the map, with
+  // the bodies frames of output.formats; its soft bodies land on the affine ones by step 30.
+  check_kill_and_resume({"run", test::scene_path("mixed_drop.json").string(), "--steps", "60",
+                         "--checkpoint-every", "8", "--threads", "2"}, 60, 8, 3, 5);
 }
 
 TEST_CASE("SIGTERM stops a run with a checkpoint, and a damaged newest checkpoint is skipped on resume") {
