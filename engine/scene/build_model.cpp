@@ -406,17 +406,28 @@ void read_boundary(const json& j, const Where& w, Model& model, int64_t num_scen
     // counts "obstacles" entries, not "bodies" entries, so "body" must never match it.
     if (body.obstacle) continue;
     if (only_entry && body.scene_entry != *only_entry) continue;
-    // An affine body's nodes are coordinates, not points of it: a box never selects them (its
-    // followers are points, and boundaries on them are refused: scene.cpp).
+    // An affine body's nodes are coordinates, not points of it: a box never selects them. It
+    // selects the followers (points of the body), and a body one of whose points it holds is
+    // held whole: its four nodes take the boundary (at rest, A stays the identity and p the
+    // centre; a moving box would have to turn the axis nodes as directions, not yet done).
     if (!model.follows.empty() && model.follows[v] < Model::kOwnNode) continue;
     const Eigen::Vector3d p = Eigen::Vector3d::Map(&model.rest_positions[3 * v]);
-    if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) {
-      if (model.dirichlet[v] >= 0 && model.dirichlet[v] != id)
+    if (!(p.array() >= lo.array()).all() || !(p.array() <= hi.array()).all()) continue;
+    const bool follower = model.follows_body(v);
+    if (follower && motion.moves())
+      w.fail("selects a vertex of body " + std::to_string(body.scene_entry) +
+             ", an affine body: only a fixed boundary (no velocity or angular_velocity) can hold one yet");
+    int32_t held[4] = {v, -1, -1, -1};
+    if (follower)
+      for (int k = 0; k < 4; ++k) held[k] = model.affine_bodies[model.follows[v]].node + k;
+    for (int32_t h : held) {
+      if (h < 0) continue;
+      if (model.dirichlet[h] >= 0 && model.dirichlet[h] != id)
         w.fail("selects vertex " + std::to_string(v) + " already held by boundary[" +
-               std::to_string(model.dirichlet[v]) + "]");
-      model.dirichlet[v] = id;
-      ++selected;
+               std::to_string(model.dirichlet[h]) + "]");
+      model.dirichlet[h] = id;
     }
+    ++selected;
   }
   if (selected == 0) w.fail("the box selects no vertex");
   model.dirichlet_motions.push_back(motion);

@@ -118,7 +118,7 @@ void check_affine_bodies(const Where& w, const Scene& scene) {
   if (scene.solver.method != SolverMethod::newton)
     w["solver"]["method"].fail("affine bodies (material model \"affine\") need the \"newton\" method");
   // Without inertia nothing but contact holds an affine body's rotation (its orthogonality
-  // potential is flat along rotations), and affine bodies cannot be held by boundaries yet.
+  // potential is flat along rotations). (Boundaries: build_model.cpp, read_boundary.)
   if (scene.time.integrator.is_static)
     w["time"]["integrator"].fail("affine bodies need a dynamic integrator: a static solve leaves their rotation free");
   // Their orthogonality potential is stiff by design: a 10 cm box at the default stiffness rings
@@ -127,12 +127,6 @@ void check_affine_bodies(const Where& w, const Scene& scene) {
   if (scene.time.integrator.is_explicit())
     w["time"]["integrator"].fail("affine bodies need an implicit integrator: their orthogonality potential is "
                                  "too stiff for an explicit step");
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (model.dirichlet[v] >= 0 && model.follows[v] != Model::kOwnNode) {
-      const BodyRange& body = model.bodies[model.vertex_body[v]];
-      w["boundary"].fail("a boundary box holds a vertex of body " + std::to_string(body.scene_entry) +
-                         ", an affine body: boundaries on affine bodies are not supported yet");
-    }
 }
 
 // The start of the run: at rest positions with the bodies' velocities (already in initial.v) and

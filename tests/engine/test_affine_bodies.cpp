@@ -292,3 +292,58 @@ TEST_CASE("affine bodies: a ten-box tower stands for 3 s, its top still to under
   CHECK(std::abs(settled.x()) < 1e-4);
   CHECK(std::abs(settled.z()) < 1e-4);
 }
+
+TEST_CASE("affine bodies: one held by a fixed boundary box is held whole while an affine and a soft box land on it") {
+  // A 40 x 5 x 40 cm affine slab in the air, held by a box around one of its corners only, and
+  // an affine box and a neo-Hookean box dropped onto it: the slab must not move at all (its four
+  // nodes are the boundary's, so every point of it stays where it was), and the two
+  // boxes come to rest on its top, dhat or less above it.
+  const std::string json = R"({
+    "gravity": [0, -9.81, 0],
+    "time": { "dt": 0.01 },
+    "contact": { "dhat": 0.001, "friction": 0.3 },
+    "materials": { "stone": { "model": "affine", "density": 2500 },
+                   "rubber": { "model": "neohookean", "youngs": 1e6, "poisson": 0.4, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.4, 0.05, 0.4], "cells": [2, 1, 2] }, "material": "stone",
+                  "translate": [0, 0.5, 0] },
+                { "box": { "size": [0.1, 0.1, 0.1], "cells": [1, 1, 1] }, "material": "stone",
+                  "translate": [-0.08, 0.6, 0.05], "rotate_deg": [0, 20, 0] },
+                { "box": { "size": [0.08, 0.08, 0.08], "cells": [2, 2, 2] }, "material": "rubber",
+                  "translate": [0.1, 0.62, -0.05] } ],
+    "boundary": [ { "box_min": [0.19, 0.47, 0.19], "box_max": [0.21, 0.53, 0.21], "fix": true } ]
+  })";
+  const Scene scene = scene_from_json(json, "affine_held");
+  Simulation sim(scene);
+  const Model& model = sim.model();
+  const BodyRange& slab = model.bodies[0];
+  const std::vector<double> start(sim.state().x.begin() + 3 * int64_t{slab.vertex_begin},
+                                  sim.state().x.begin() + 3 * int64_t{slab.vertex_begin + slab.vertex_count});
+  double closest = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 80; ++k) {
+    REQUIRE(sim.step().ok());
+    closest = std::min(closest, sim.last_stats().min_distance);
+  }
+  const std::vector<double> end(sim.state().x.begin() + 3 * int64_t{slab.vertex_begin},
+                                sim.state().x.begin() + 3 * int64_t{slab.vertex_begin + slab.vertex_count});
+  // Its nodes bit for bit; its points to rounding (they start at their placed positions and are
+  // p + A y after the first step).
+  double moved = 0.0;
+  for (size_t i = 0; i < start.size(); ++i) moved = std::max(moved, std::abs(end[i] - start[i]));
+  CHECK(moved < 1e-15);
+  CHECK(std::equal(start.end() - 12, start.end(), end.end() - 12));
+  CHECK(closest > 0.0);
+  const double top = 0.525;
+  for (int b : {1, 2}) {
+    CAPTURE(b);
+    const BodyRange& body = model.bodies[b];
+    double lowest = std::numeric_limits<double>::infinity(), speed = 0.0;
+    for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+      if (model.axis_node(v)) continue;
+      lowest = std::min(lowest, sim.state().x[3 * int64_t{v} + 1]);
+      speed = std::max(speed, Eigen::Vector3d::Map(&sim.state().v[3 * int64_t{v}]).norm());
+    }
+    CHECK(lowest > top);
+    CHECK(lowest < top + 1e-3);
+    CHECK(speed < 1e-2);
+  }
+}

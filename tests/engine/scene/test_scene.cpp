@@ -561,8 +561,9 @@ TEST_CASE("scene: an affine material refuses what affine bodies do not have, nam
       {scene_with(R"("time": { "integrator": "static" })", affine, box), {"time.integrator", "dynamic"}},
       {scene_with(R"("time": { "integrator": "central_difference" })", affine, box), {"time.integrator", "implicit"}},
       {scene_with(R"("solver": { "method": "linearized" })", affine, box), {"solver.method", "newton"}},
-      {scene_with(R"("boundary": [ { "box_min": [-1, -1, -1], "box_max": [1, 1, 1], "fix": true } ])", affine, box),
-       {"boundary", "affine"}},
+      {scene_with(R"("boundary": [ { "box_min": [-1, -1, -1], "box_max": [1, 1, 1], "velocity": [0, 1, 0] } ])",
+                  affine, box),
+       {"boundary[0]", "affine", "fixed"}},
       {scene_with(R"("joints": [ { "type": "pin", "body": 0, "point": [0, 0, 0] } ])", affine, box),
        {"joints[0].body", "affine"}},
   };
