@@ -401,10 +401,11 @@ void Simulation::constrain_initial_acceleration() {
   joints_.apply(state_.a.data(), rhs.data());
   Eigen::MatrixXd A(m, m);
   std::vector<double> field(n), unit(m);
+  // Followers of affine bodies (massless) are not coordinates: the joint acts on their nodes.
   auto free_inverse_mass = [&](std::vector<double>& f) {
     for (int32_t v = 0; v < model_.num_vertices; ++v)
       for (int d = 0; d < 3; ++d)
-        f[3 * v + d] = model_.dirichlet[v] >= 0 ? 0.0 : f[3 * v + d] / model_.mass[v];
+        f[3 * v + d] = model_.dirichlet[v] >= 0 || !(model_.mass[v] > 0.0) ? 0.0 : f[3 * v + d] / model_.mass[v];
   };
   for (int64_t i = 0; i < m; ++i) {
     std::fill(field.begin(), field.end(), 0.0);
@@ -420,6 +421,7 @@ void Simulation::constrain_initial_acceleration() {
   joints_.apply_transpose(mu.data(), field.data());
   free_inverse_mass(field);
   for (int64_t i = 0; i < n; ++i) state_.a[i] -= field[i];
+  map_.follow(state_.a.data());
   // The joint force is J^T lambda with lambda = -mu: the multipliers start there.
   for (int64_t j = 0; j < joints_.size(); ++j) joints_.set_multiplier(j, -mu.segment<3>(3 * j));
 }

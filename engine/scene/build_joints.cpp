@@ -1,5 +1,6 @@
 // The "joints" of a scene (DESIGN.md section 5; engine/model.hpp, Joint): each joint point is
-// carried by the tet of its body nearest to it, with fixed barycentric weights.
+// carried by the tet of its body nearest to it, with fixed barycentric weights, or on an affine
+// body by its four nodes (x = p + y_0 c_0 + y_1 c_1 + y_2 c_2: weights 1, y_0, y_1, y_2).
 #include "engine/scene/build_model.hpp"
 
 #include "kernels/distance/point_triangle_distance.hpp"
@@ -19,6 +20,18 @@ namespace {
 void attach_to_body(const Model& model, const BodyRange& body, const Eigen::Vector3d& point, int32_t (&vertex)[4],
                     double (&weight)[4]) {
   auto X = [&](int32_t v) { return Eigen::Vector3d::Map(&model.rest_positions[3 * int64_t{v}]); };
+  const int32_t body_index = static_cast<int32_t>(&body - model.bodies.data());
+  for (const AffineBody& affine : model.affine_bodies) {
+    if (affine.body != body_index) continue;
+    // The point's rest coordinates in the body's principal frame, about its centre of mass.
+    const Eigen::Vector3d y = affine.frame.transpose() * (point - X(affine.node));
+    const double w[4] = {1.0, y[0], y[1], y[2]};
+    for (int k = 0; k < 4; ++k) {
+      vertex[k] = affine.node + k;
+      weight[k] = w[k];
+    }
+    return;
+  }
   double best = std::numeric_limits<double>::infinity();
   int32_t best_tet = body.tet_begin;
   for (int32_t t = body.tet_begin; t < body.tet_begin + body.tet_count && best > 0.0; ++t) {
@@ -58,8 +71,6 @@ const BodyRange& joint_body(const json& value, const Where& w, const Model& mode
     if (found) w.fail("body " + std::to_string(entry) + " is an \"array\" of several bodies; a joint needs one", value);
     found = &body;
   }
-  // A joint point is carried by a tet of its body; an affine body has none in the model.
-  if (model.materials[found->material].affine) w.fail("joints on affine bodies are not supported yet", value);
   return *found;
 }
 

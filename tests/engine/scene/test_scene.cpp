@@ -564,8 +564,6 @@ TEST_CASE("scene: an affine material refuses what affine bodies do not have, nam
       {scene_with(R"("boundary": [ { "box_min": [-1, -1, -1], "box_max": [1, 1, 1], "velocity": [0, 1, 0] } ])",
                   affine, box),
        {"boundary[0]", "affine", "fixed"}},
-      {scene_with(R"("joints": [ { "type": "pin", "body": 0, "point": [0, 0, 0] } ])", affine, box),
-       {"joints[0].body", "affine"}},
   };
   for (const Case& c : cases) {
     CAPTURE(c.json);
