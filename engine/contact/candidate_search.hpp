@@ -34,6 +34,14 @@ inline std::vector<uint8_t> free_vertices(const Model& m, const uint8_t* moving)
   return free;
 }
 
+// Whether vertices a and b are points of one affine body: their distance never changes (up to
+// the body's tiny stretch), so a pair of its own primitives is never a contact.
+inline bool same_affine_body(const Model& m, int32_t a, int32_t b) {
+  if (m.follows.empty()) return false;
+  const int32_t body = m.follows[a];
+  return (body >= 0) & (body == m.follows[b]);
+}
+
 // The filters of candidates.hpp, shared by the fast and the brute-force paths. Written with
 // bitwise operators: they run on every box overlap, and whether a pair passes is unpredictable.
 inline bool keep_vertex_triangle(const Model& m, const uint8_t* free, int32_t v, int32_t t) {
@@ -41,7 +49,7 @@ inline bool keep_vertex_triangle(const Model& m, const uint8_t* free, int32_t v,
   const bool not_corner = (v != tri[0]) & (v != tri[1]) & (v != tri[2]);
   const bool any_free =
       is_free(free, v) | is_free(free, tri[0]) | is_free(free, tri[1]) | is_free(free, tri[2]);
-  return not_corner & any_free;
+  return not_corner & any_free & !same_affine_body(m, v, tri[0]);
 }
 
 inline bool keep_edge_edge(const Model& m, const uint8_t* free, int32_t a, int32_t b) {
@@ -50,7 +58,7 @@ inline bool keep_edge_edge(const Model& m, const uint8_t* free, int32_t a, int32
   const bool disjoint = (ea[0] != eb[0]) & (ea[0] != eb[1]) & (ea[1] != eb[0]) & (ea[1] != eb[1]);
   const bool any_free =
       is_free(free, ea[0]) | is_free(free, ea[1]) | is_free(free, eb[0]) | is_free(free, eb[1]);
-  return disjoint & any_free;
+  return disjoint & any_free & !same_affine_body(m, ea[0], eb[0]);
 }
 
 // Per body: the mean of x1 - x0 over its vertices (zero without x1).

@@ -42,7 +42,7 @@ class CandidateSearch {
         free_(free),
         prims_(body_primitives(m, free)),
         neighbors_(neighbor_bodies(m, prims_, x0, x1, inflation)),
-        own_searched_(own_searched(prims_)),
+        own_searched_(own_searched(m, prims_)),
         searched_(searched(prims_, neighbors_)),
         boxes_(m, prims_, searched_.data(), own_searched_.data(), x0, x1, inflation),
         world_(boxes_.world),
@@ -70,9 +70,11 @@ class CandidateSearch {
   // Only bodies with a free vertex and their neighbours can be in a pair: only their primitives
   // are boxed and searched (a re-search after a few bodies moved costs what those bodies cost),
   // and only the former's own pairs.
-  static std::vector<uint8_t> own_searched(const std::vector<BodyPrimitives>& prims) {
+  // An affine body has no own pairs (same_affine_body): its own primitives are not searched.
+  static std::vector<uint8_t> own_searched(const Model& m, const std::vector<BodyPrimitives>& prims) {
     std::vector<uint8_t> out(prims.size());
     for (size_t b = 0; b < prims.size(); ++b) out[b] = prims[b].any_free;
+    for (const AffineBody& body : m.affine_bodies) out[body.body] = 0;
     return out;
   }
   static std::vector<uint8_t> searched(const std::vector<BodyPrimitives>& prims, const NeighborBodies& neighbors) {
@@ -163,7 +165,7 @@ void CandidateSearch::vertex_triangle_pairs(std::vector<IndexPair>& out) const {
         int32_t j = 0;
         for (; j < near_count && near[j] < neighbors_.above[body]; ++j)
           neighbor_pairs(tri_near_, tri_world_, tri_free_, near[j], lo, hi, v, v_free, buffer);
-        if (prims_[body].any_free) {
+        if (own_searched_[body]) {
           const double* own_lo = &own_.v_lo[3 * int64_t{i}];
           const double* own_hi = &own_.v_hi[3 * int64_t{i}];
           auto keep = [&](int32_t t) { return keep_vertex_triangle(m_, free_, v, t); };
@@ -187,7 +189,7 @@ void CandidateSearch::edge_edge_pairs(std::vector<IndexPair>& out) const {
       [&](int32_t a, PairBuffer& buffer) {
         const int32_t body = m_.vertex_body[m_.surface_edges[2 * int64_t{a}]];
         if (!searched_[body]) return;
-        if (prims_[body].any_free) {
+        if (own_searched_[body]) {
           const double* own_lo = &own_.e_lo[3 * int64_t{a}];
           const double* own_hi = &own_.e_hi[3 * int64_t{a}];
           if (same_body_.edge_tree[body]) {

@@ -43,7 +43,8 @@ struct ContactCandidates {
   }
 };
 
-// Every non-adjacent pair with a free vertex that may come closer than 2 * inflation along
+// Every non-adjacent pair with a free vertex, not both of one affine body (they keep their
+// distance), that may come closer than 2 * inflation along
 // x0 -> x1 (positions (num_vertices x 3)); x1 == nullptr means the static configuration x0.
 // Vertex-plane pairs: the vertex's signed distance to the plane is below 2 * inflation at x0 or
 // x1 (it is linear in time, so that covers the whole motion).

@@ -125,6 +125,47 @@ TEST_CASE("contact candidates equal the brute force, static and swept, on 1 and 
   }
 }
 
+TEST_CASE("contact candidates: none within one affine body, the rest equal the brute force") {
+  // Two affine boxes of 2 x 2 x 2 cells and a tet box beside them, 1 cm apart: with a 5 cm
+  // inflation every body's own primitives overlap. A rigid body's own pairs never come closer,
+  // so the affine boxes have none; the tet box keeps its own, and the pairs across bodies stay.
+  const Scene scene = test::scene_from_json(R"({
+    "gravity": [0, -9.81, 0], "time": { "dt": 0.01 }, "contact": { "dhat": 0.01 },
+    "materials": { "a": { "model": "affine", "density": 1000 },
+                   "t": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "a",
+                  "array": { "count": [2, 1, 1], "spacing": [0.21, 0, 0] } },
+                { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "t",
+                  "translate": [0.42, 0, 0] } ]
+  })", "candidates_affine");
+  const Model& model = scene.model;
+  REQUIRE(model.affine_bodies.size() == 2);
+  const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 3);
+  const std::vector<double> x1 = moved(model, x0, 4);
+  for (const double* end : {static_cast<const double*>(nullptr), x1.data()}) {
+    CAPTURE(end != nullptr);
+    ContactCandidates reference, fast;
+    find_contact_candidates_brute_force(model, x0.data(), end, 0.05, reference);
+    find_contact_candidates(model, x0.data(), end, 0.05, fast);
+    check_equal(fast, reference);
+    const auto body = [&](int32_t v) { return model.vertex_body[v]; };
+    int64_t own_tet = 0, across = 0;
+    for (const IndexPair& p : reference.vertex_triangle) {
+      const int32_t a = body(p.first), b = body(model.surface_triangles[3 * int64_t{p.second}]);
+      CHECK((a != b || !model.materials[model.bodies[a].material].affine));
+      own_tet += a == b;
+      across += a != b;
+    }
+    for (const IndexPair& p : reference.edge_edge) {
+      const int32_t a = body(model.surface_edges[2 * int64_t{p.first}]);
+      const int32_t b = body(model.surface_edges[2 * int64_t{p.second}]);
+      CHECK((a != b || !model.materials[model.bodies[a].material].affine));
+    }
+    CHECK(own_tet > 0);
+    CHECK(across > 0);
+  }
+}
+
 TEST_CASE("contact candidates of bodies too big to scan equal the brute force") {
   const Scene scene = two_plates();
   const Model& model = scene.model;
