@@ -111,7 +111,8 @@ struct DirichletMotion {
 // A joint (DESIGN.md section 5, "joints"; issue 4). Its constraint is linear in the positions:
 //   c(x) = sum_k coefficient[k] x[vertex[k]] + offset = 0   (3 equations).
 // A joint point is carried by a tet of its body with fixed barycentric weights w (extrapolated
-// when the point lies outside the tet). A pin holds it at its start position: the first 4 terms
+// when the point lies outside the tet), or on an affine body by its four nodes with weights
+// 1, y_0, y_1, y_2 (the point's rest coordinates in the body's principal frame). A pin holds it at its start position: the first 4 terms
 // are +w and offset = -point. A ball joint holds the two bodies' copies together: +w of the first
 // body's tet, then -w of the second's, and offset = 0.
 enum class JointType : uint8_t { pin, ball };
