@@ -348,7 +348,7 @@ TEST_CASE("affine bodies: one held by a fixed boundary box is held whole while a
   }
 }
 
-TEST_CASE("affine bodies: a rod pinned at its end swings with the period of the physical pendulum; a ball joint holds a tet box to it") {
+TEST_CASE("affine bodies: a rod pinned at its end swings with the period of the physical pendulum, and a ball joint holds a tet box to it") {
   // A 4 x 40 x 4 cm affine rod hanging from a pin at its top end, let go 5 degrees from the
   // vertical: T = 2 pi sqrt(I_pin / (m g d)), I_pin = m (L^2 + w^2) / 12 + m d^2, d = L / 2, times
   // 1 + theta^2 / 16 for the amplitude: 1.0377 s. Under the default integrator at dt 5 ms the
