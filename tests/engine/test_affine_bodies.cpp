@@ -60,6 +60,14 @@ std::string spin_scene(const std::string& angular_velocity, const std::string& r
   })";
 }
 
+// The JSON text of a shipped scene, for a test that changes a key or two.
+std::string shipped_scene_text(const std::string& name) {
+  std::ifstream in(scene_path(name));
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 }  // namespace
 
 TEST_CASE("affine bodies: at t = 0 the kinetic energy and angular momentum are those of the rigid body") {
@@ -224,10 +232,7 @@ TEST_CASE("affine bodies: a pile of ten under generalized-alpha lands in few New
   // the Newton directions toward it stalled the CCD (a 49 s step, two steps retried in halves,
   // 30 iterations a step). The axis nodes now carry their rigid rotation's acceleration
   // (Simulation::set_rigid_rotation_acceleration); measured: 14.7 iterations a step, at most 32.
-  std::ifstream in(scene_path("stress/pile_10.json"));
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string json = text.str();
+  std::string json = shipped_scene_text("stress/pile_10.json");
   auto replace = [&](const std::string& from, const std::string& to) {
     for (size_t at = json.find(from); at != std::string::npos; at = json.find(from, at + to.size()))
       json.replace(at, from.size(), to);
@@ -260,10 +265,7 @@ TEST_CASE("affine bodies: a ten-box tower stands for 3 s, its top still to under
   // top box may creep only by what smoothed static friction and the barrier allow (measured:
   // 44 um down, 19 um across). Its height is that of the stacked boxes plus ten gaps, each
   // inside the barrier's reach (0 < gap < dhat).
-  std::ifstream in(scene_path("affine_stack.json"));
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string json = text.str();
+  std::string json = shipped_scene_text("affine_stack.json");
   const std::string solver = "\"solver\": {";
   REQUIRE(json.find(solver) != std::string::npos);
   json.replace(json.find(solver), solver.size(), solver + " \"sleep\": false,");
