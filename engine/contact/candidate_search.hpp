@@ -61,7 +61,7 @@ inline bool keep_edge_edge(const Model& m, const uint8_t* free, int32_t a, int32
   return disjoint & any_free & !same_affine_body(m, ea[0], eb[0]);
 }
 
-// Per body: the mean of x1 - x0 over its vertices (zero without x1).
+// Per body: the mean of x1 - x0 over its vertices (zero without x1), affine axis nodes left out.
 inline std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0, const double* x1) {
   std::vector<Eigen::Vector3d> shift(m.bodies.size(), Eigen::Vector3d::Zero());
   if (!x1) return shift;
@@ -69,9 +69,13 @@ inline std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0
     for (int64_t b = begin; b < end; ++b) {
       const BodyRange& body = m.bodies[b];
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v)
+      int32_t count = 0;
+      for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+        if (m.axis_node(v)) continue;  // a column of an affine body's A R: no point that moves
         sum += Eigen::Vector3d::Map(x1 + 3 * int64_t{v}) - Eigen::Vector3d::Map(x0 + 3 * int64_t{v});
-      if (body.vertex_count > 0) shift[b] = sum / body.vertex_count;
+        ++count;
+      }
+      if (count > 0) shift[b] = sum / count;
     }
   }, 1);
   return shift;

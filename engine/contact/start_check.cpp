@@ -51,12 +51,14 @@ std::string initial_contact_problem(const Model& model) {
   const int32_t nb = static_cast<int32_t>(model.bodies.size());
   std::vector<double> lo(3 * nb, std::numeric_limits<double>::infinity());
   std::vector<double> hi(3 * nb, -std::numeric_limits<double>::infinity());
-  for (int32_t v = 0; v < model.num_vertices; ++v)
+  for (int32_t v = 0; v < model.num_vertices; ++v) {
+    if (model.axis_node(v)) continue;  // a column of an affine body's A R, not a point of it
     for (int d = 0; d < 3; ++d) {
       const int32_t b = model.vertex_body[v];
       lo[3 * b + d] = std::min(lo[3 * b + d], x[3 * v + d]);
       hi[3 * b + d] = std::max(hi[3 * b + d], x[3 * v + d]);
     }
+  }
   for (const IndexPair& pair : self_overlapping_pairs(lo.data(), hi.data(), nb)) {
     for (int side = 0; side < 2; ++side) {
       const int32_t inner = side ? pair.second : pair.first;
