@@ -3,7 +3,10 @@
 
 #include "engine/parallel.hpp"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace nexdyn {
@@ -58,6 +61,38 @@ int owner_of_block(int K, int a, int b) {
 }  // namespace
 
 CoordinateMap::CoordinateMap(const Model& model) : model_(model) {}
+
+int CoordinateMap::turn(const double* x, const double* direction, const int32_t* group_of_vertex,
+                        const double* group_alpha, double* trial) const {
+  int turned = 0;
+  for (const AffineBody& body : model_.affine_bodies) {
+    const int32_t g = group_of_vertex[body.node];
+    if (g < 0) continue;
+    Eigen::Matrix3d C, D;
+    for (int j = 0; j < 3; ++j) {
+      C.col(j) = Eigen::Vector3d::Map(x + 3 * int64_t{body.node + 1 + j});
+      D.col(j) = Eigen::Vector3d::Map(direction + 3 * int64_t{body.node + 1 + j});
+    }
+    if (D.squaredNorm() == 0.0 || !(C.determinant() > 0.0)) continue;
+    const double alpha = group_alpha[g];
+    const Eigen::Matrix3d M = alpha * D * C.inverse();
+    const Eigen::Matrix3d W = 0.5 * (M - M.transpose());
+    const Eigen::Matrix3d E = 0.5 * (M + M.transpose());
+    const double theta = Eigen::Vector3d(W(2, 1), W(0, 2), W(1, 0)).norm();
+    if (!(theta > 1e-9)) continue;
+    const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + std::sin(theta) / theta * W +
+                              (1.0 - std::cos(theta)) / (theta * theta) * W * W;
+    const Eigen::Matrix3d turned_c = R * (Eigen::Matrix3d::Identity() + E) * C;
+    double* q = trial + 3 * int64_t{body.node};
+    for (int j = 0; j < 3; ++j) Eigen::Vector3d::Map(q + 3 * (j + 1)) = turned_c.col(j);
+    for (int64_t v = body.follower_begin; v < body.follower_begin + body.follower_count; ++v) {
+      const double* y = &model_.follower_rest[3 * v];
+      for (int d = 0; d < 3; ++d) trial[3 * v + d] = q[d] + y[0] * q[3 + d] + y[1] * q[6 + d] + y[2] * q[9 + d];
+    }
+    ++turned;
+  }
+  return turned;
+}
 
 VertexNodes CoordinateMap::nodes_of(int32_t v) const {
   VertexNodes out;

@@ -62,6 +62,14 @@ class CoordinateMap {
   // slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped` was made from.
   void map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin, const double* slabs,
                  const MappedStencils& mapped, double* out) const;
+  // The line search's trial point, turned: each affine body whose first node is in a moving group
+  // (group_of_vertex[node] >= 0) takes the step alpha = group_alpha[group] of `direction` from x
+  // as a turn by exp(alpha W) after the stretch alpha E, W and E the skew and symmetric parts of
+  // D C^-1 (C the axis nodes at x, D their direction), instead of along the chord C + alpha D,
+  // which stretches the body by (alpha theta)^2 / 2. Writes the axis nodes and the followers of
+  // those bodies into trial (whose p nodes must already be x + alpha d); returns how many turned.
+  int turn(const double* x, const double* direction, const int32_t* group_of_vertex, const double* group_alpha,
+           double* trial) const;
   // group[v] of every follower = the group of its body's first node (-1 = does not move).
   void follow_groups(int32_t* group) const;
 

@@ -422,10 +422,55 @@ bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& 
 }
 
 bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult& result) {
+  if (model_.affine_bodies.empty()) return line_search_pass(x, num_groups, false, result);
+  // Affine bodies turn along their step (CoordinateMap::turn): along the chord C + alpha D a body
+  // turned by theta is stretched by theta^2 / 2, which the orthogonality potential charges
+  // kappa V theta^4 and the quadratic model cannot see (its Hessian is flat along rotations), so
+  // the search halved the steps of turning bodies over tens of iterations. If the turned point
+  // fails (a turn into a contact, or no decrease once its pairs are known), the straight search.
+  NewtonResult turned = result;
+  if (line_search_pass(x, num_groups, true, turned) && turned_point_valid(x, num_groups)) return true;
+  potential_.sweep(x, direction_.data(), vertex_moves_.data());  // the straight step's pairs again
+  return line_search_pass(x, num_groups, false, result);
+}
+
+bool NewtonSolver::turned_point_valid(const double* x, int32_t num_groups) {
+  // The turned trial is off the swept segment x -> x + alpha p by the turn's motion (second order
+  // in alpha theta): CCD over that motion from the straight point, then the energy test again
+  // with the pairs that sweep found (so that the candidates cover the accepted point).
+  const int64_t n = model_.num_dofs();
+  straight_.resize(n);
+  turn_motion_.resize(n);
+  turn_moves_.assign(model_.num_vertices, 0);
+  bool any = false;
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t g = group_of_vertex_[i / 3];
+    straight_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
+    turn_motion_[i] = trial_[i] - straight_[i];
+    if (turn_motion_[i] != 0.0) turn_moves_[i / 3] = 1, any = true;
+  }
+  if (!any) return true;
+  potential_.sweep(straight_.data(), turn_motion_.data(), turn_moves_.data());
+  double alpha = 1.0;
+  potential_.group_max_steps(straight_.data(), nullptr, &alpha);
+  if (alpha < 1.0) return false;
+  potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+  for (int32_t k = 0; k < num_groups; ++k)
+    if (!sufficient_decrease(k)) return false;
+  return true;
+}
+
+bool NewtonSolver::sufficient_decrease(int32_t k) const {
+  const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
+  return group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise;
+}
+
+bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result) {
   // Backtracking, group by group: the energy is a sum over groups plus terms that do not move, so
   // each group halves its own step until its own part of E decreases enough. Energies are
   // compared with a round-off allowance: near the minimum the decrease s*alpha*g.p can be smaller
-  // than the error of summing E itself. The accepted point is left in trial_.
+  // than the error of summing E itself. The accepted point is left in trial_; with `turn` the
+  // affine bodies' trial points are turned (line_search).
   ProfileScope scope(profile_, StepPhase::line_search);
   const int64_t n = model_.num_dofs();
   group_start_.resize(num_groups);
@@ -441,11 +486,11 @@ bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult
         trial_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
       }
     }, 8192);
+    if (turn) potential_.map().turn(x, direction_.data(), group_of_vertex_.data(), group_alpha_.data(), trial_.data());
     potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
     for (int32_t k = 0; k < num_groups; ++k) {
       if (group_done_[k]) continue;
-      const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
-      if (group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise) {
+      if (sufficient_decrease(k)) {
         group_done_[k] = 1;
         --pending;
         continue;

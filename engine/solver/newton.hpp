@@ -125,8 +125,15 @@ class NewtonSolver {
   int32_t build_groups(const double* x);
   // Scales each group's direction to its collision-free fraction; the groups' slopes.
   bool cap_steps(const double* x, int32_t num_groups, NewtonResult& result);
-  // Backtracking per group from x; the accepted point is left in trial_.
+  // Backtracking per group from x; the accepted point is left in trial_. With affine bodies the
+  // trial points first turn them (CoordinateMap::turn), then, if that fails, go straight.
   bool line_search(const double* x, int32_t num_groups, NewtonResult& result);
+  bool line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result);
+  // Whether group k's trial energy decreased enough (Armijo, with a round-off allowance).
+  bool sufficient_decrease(int32_t k) const;
+  // The turned trial point is collision-free from the straight one and every group decreases
+  // with the contact pairs found there (they then cover the accepted point).
+  bool turned_point_valid(const double* x, int32_t num_groups);
   // Convergence bookkeeping: a converged island's vertices share a token (islands.hpp numbers
   // change from iteration to iteration; tokens say "this exact island converged").
   bool frozen(int32_t island) const;
@@ -169,6 +176,8 @@ class NewtonSolver {
   // (groups) step length, slope g.p, energies at x and at the trial point, accepted
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;
+  std::vector<double> straight_, turn_motion_;  // (3n) turned trial: the straight point, the turn
+  std::vector<uint8_t> turn_moves_;             // (n) vertices the turn moves
 };
 
 }  // namespace nexdyn

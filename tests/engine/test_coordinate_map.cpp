@@ -206,3 +206,89 @@ TEST_CASE("coordinate map: followers take the line-search group of their body") 
   for (int v : {3, 4, 5}) CHECK(group[v] == 2);
   for (int v : {10, 11}) CHECK(group[v] == -1);
 }
+
+namespace {
+// Rodrigues: the rotation by |w| about w.
+Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
+  const double t = w.norm();
+  Eigen::Matrix3d K;
+  K << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  K /= t;
+  return Eigen::Matrix3d::Identity() + std::sin(t) * K + (1 - std::cos(t)) * K * K;
+}
+}  // namespace
+
+TEST_CASE("coordinate map: a turned trial rotates a rigid body rigidly and agrees with the chord to first order") {
+  // Body A (nodes 6..9) at a rotation C0, its direction the rotation's tangent W C0 (plus a
+  // stretch E C0 in the second part). The chord C0 + alpha D stretches the body by
+  // (alpha theta)^2 / 2; the turned trial is exp(alpha W) (I + alpha E) C0 exactly, and differs
+  // from the chord by O(alpha^2).
+  std::mt19937_64 rng(11);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  const int n = 3 * model.num_vertices;
+  const Eigen::Matrix3d C0 = rotation({0.3, -0.5, 0.2});
+  const Eigen::Vector3d w(0.2, 0.7, -0.4);  // |w| = 0.83 rad over a full step
+  Eigen::Matrix3d W;
+  W << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  const Eigen::Vector3d p(0.1, 0.2, 0.3), dp(0.01, -0.02, 0.005);
+
+  auto state = [&](const Eigen::Matrix3d& D, std::vector<double>& x, std::vector<double>& d) {
+    x.assign(n, 0.0);
+    d.assign(n, 0.0);
+    Eigen::Vector3d::Map(&x[3 * 6]) = p;
+    Eigen::Vector3d::Map(&d[3 * 6]) = dp;
+    for (int j = 0; j < 3; ++j) {
+      Eigen::Vector3d::Map(&x[3 * (7 + j)]) = C0.col(j);
+      Eigen::Vector3d::Map(&d[3 * (7 + j)]) = D.col(j);
+    }
+    map.follow(x.data());
+    map.follow(d.data());  // as Newton's direction: the followers' part is J d
+  };
+  std::vector<int32_t> group(model.num_vertices, -1);
+  for (int v : {3, 4, 5, 6, 7, 8, 9}) group[v] = 0;  // body B does not move
+
+  auto turned = [&](const std::vector<double>& x, const std::vector<double>& d, double alpha) {
+    std::vector<double> trial(n);
+    for (int i = 0; i < n; ++i) trial[i] = group[i / 3] < 0 ? x[i] : x[i] + alpha * d[i];
+    CHECK(map.turn(x.data(), d.data(), group.data(), &alpha, trial.data()) == 1);
+    return trial;
+  };
+  auto nodes_c = [&](const std::vector<double>& q) {
+    Eigen::Matrix3d C;
+    for (int j = 0; j < 3; ++j) C.col(j) = Eigen::Vector3d::Map(&q[3 * (7 + j)]);
+    return C;
+  };
+
+  SUBCASE("a pure turn stays a rotation, its followers on it") {
+    std::vector<double> x, d;
+    state(W * C0, x, d);
+    for (double alpha : {1.0, 0.5, 0.125}) {
+      const std::vector<double> trial = turned(x, d, alpha);
+      const Eigen::Matrix3d C = nodes_c(trial);
+      CHECK((C - rotation(alpha * w) * C0).norm() < 1e-14);
+      CHECK((C.transpose() * C - Eigen::Matrix3d::Identity()).norm() < 1e-14);
+      CHECK((Eigen::Vector3d::Map(&trial[3 * 6]) - (p + alpha * dp)).norm() < 1e-15);  // p is not turned
+      std::vector<double> refollowed = trial;
+      map.follow(refollowed.data());
+      for (int i = 0; i < n; ++i) CHECK(trial[i] == doctest::Approx(refollowed[i]).epsilon(1e-15));
+      for (int i = 3 * 10; i < n; ++i) CHECK(trial[i] == x[i]);  // body B untouched
+    }
+  }
+  SUBCASE("with a stretch, turn minus chord shrinks as alpha^2") {
+    Eigen::Matrix3d E;
+    E << 0.02, 0.01, 0.0, 0.01, -0.03, 0.005, 0.0, 0.005, 0.01;
+    std::vector<double> x, d;
+    state((W + E) * C0, x, d);
+    double previous = 0.0;
+    for (double alpha : {0.1, 0.05, 0.025}) {
+      const std::vector<double> trial = turned(x, d, alpha);
+      const Eigen::Matrix3d C = nodes_c(trial);
+      CHECK((C - rotation(alpha * w) * (Eigen::Matrix3d::Identity() + alpha * E) * C0).norm() < 1e-14);
+      double gap = 0.0;
+      for (int i = 0; i < n; ++i) gap = std::max(gap, std::abs(trial[i] - (x[i] + (group[i / 3] < 0 ? 0.0 : alpha * d[i]))));
+      if (previous > 0.0) CHECK(previous / gap == doctest::Approx(4.0).epsilon(0.05));
+      previous = gap;
+    }
+  }
+}
