@@ -522,6 +522,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
                      (where.empty() ? std::string("a contact pair touches (distance 0)") : where);
     return result;
   }
+  int relags = 0;
   for (int it = 0; it < settings.max_iterations; ++it) {
     if (!solve_direction(x.data(), it, result)) return result;
     result.iterations = it + 1;
@@ -551,6 +552,13 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     }
     // A term whose energy changed there (kappa raised) thaws the islands of its stencils.
     for (const std::vector<int32_t>* stencils : potential_.end_iteration(x.data())) thaw(*stencils);
+    // Near the solution, the caller may bring lagged quantities up to x (a friction lag): the
+    // islands whose potential that changed are thawed, and the solve goes on with it.
+    if (settings.relag && relags < settings.max_relags && result.increment < settings.relag_below) {
+      ++relags;
+      if (settings.relag(x.data()))
+        for (const std::vector<int32_t>* stencils : potential_.take_changed_stencils()) thaw(*stencils);
+    }
   }
   result.status = StepStatus::max_iterations;
   result.message = format("Newton did not converge in the iteration limit (last increment "

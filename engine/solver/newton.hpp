@@ -32,6 +32,7 @@
 #include "engine/step_profile.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -43,6 +44,14 @@ struct NewtonSettings {
   double tolerance = 1e-5;  // [m/s] on max|p| / dt
   int max_iterations = 100;
   double dt = 0.01;         // [s] turns the increment into a velocity
+  // Lagged quantities brought up to date inside the solve (the friction lag of converged
+  // lagging): after an iteration whose increment is below relag_below [m/s], at most max_relags
+  // times a solve, relag(x) re-lags at the accepted point and says whether the potential changed
+  // (the islands of its changed stencils are then thawed). Without it, a caller that lags at each
+  // solution re-solves from there, and each re-solve restarts Newton's convergence.
+  std::function<bool(const double*)> relag;
+  double relag_below = 0.0;
+  int max_relags = 0;
 };
 
 struct NewtonResult {
