@@ -6,7 +6,6 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
-#include <cmath>
 #include <stdexcept>
 
 namespace nexdyn {
@@ -78,11 +77,11 @@ int CoordinateMap::turn(const double* x, const double* direction, const int32_t*
     const Eigen::Matrix3d M = alpha * D * C.inverse();
     const Eigen::Matrix3d W = 0.5 * (M - M.transpose());
     const Eigen::Matrix3d E = 0.5 * (M + M.transpose());
-    const double theta = Eigen::Vector3d(W(2, 1), W(0, 2), W(1, 0)).norm();
+    const Eigen::Vector3d w(W(2, 1), W(0, 2), W(1, 0));  // W's axial vector: a turn by |w|
+    const double theta = w.norm();
     if (!(theta > 1e-9)) continue;
-    const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() + std::sin(theta) / theta * W +
-                              (1.0 - std::cos(theta)) / (theta * theta) * W * W;
-    const Eigen::Matrix3d turned_c = R * (Eigen::Matrix3d::Identity() + E) * C;
+    const Eigen::Matrix3d turned_c =
+        Eigen::AngleAxisd(theta, w / theta).toRotationMatrix() * (Eigen::Matrix3d::Identity() + E) * C;
     double* q = trial + 3 * int64_t{body.node};
     for (int j = 0; j < 3; ++j) Eigen::Vector3d::Map(q + 3 * (j + 1)) = turned_c.col(j);
     for (int64_t v = body.follower_begin; v < body.follower_begin + body.follower_count; ++v) {

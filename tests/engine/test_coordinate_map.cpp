@@ -6,6 +6,7 @@
 #include <doctest/doctest.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cmath>
 #include <numeric>
@@ -208,14 +209,7 @@ TEST_CASE("coordinate map: followers take the line-search group of their body") 
 }
 
 namespace {
-// Rodrigues: the rotation by |w| about w.
-Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
-  const double t = w.norm();
-  Eigen::Matrix3d K;
-  K << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
-  K /= t;
-  return Eigen::Matrix3d::Identity() + std::sin(t) * K + (1 - std::cos(t)) * K * K;
-}
+Eigen::Matrix3d rotation(const Eigen::Vector3d& w) { return Eigen::AngleAxisd(w.norm(), w.normalized()).matrix(); }
 }  // namespace
 
 TEST_CASE("coordinate map: a turned trial rotates a rigid body rigidly and agrees with the chord to first order") {
@@ -229,8 +223,7 @@ TEST_CASE("coordinate map: a turned trial rotates a rigid body rigidly and agree
   const int n = 3 * model.num_vertices;
   const Eigen::Matrix3d C0 = rotation({0.3, -0.5, 0.2});
   const Eigen::Vector3d w(0.2, 0.7, -0.4);  // |w| = 0.83 rad over a full step
-  Eigen::Matrix3d W;
-  W << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  const Eigen::Matrix3d W = (Eigen::Matrix3d() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
   const Eigen::Vector3d p(0.1, 0.2, 0.3), dp(0.01, -0.02, 0.005);
 
   auto state = [&](const Eigen::Matrix3d& D, std::vector<double>& x, std::vector<double>& d) {
