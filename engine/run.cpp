@@ -297,6 +297,11 @@ RunSummary step_loop(const Scene& scene, const fs::path& out, Sim& simulation, R
       checkpoint();
       break;
     }
+    if (const std::string& why = simulation.last_stats().retried_because; !why.empty()) {
+      const std::string line = "step " + std::to_string(step) + ": " + why;
+      if (summary.retried_steps++ == 0) summary.first_retry = line;
+      if (show_progress) std::fprintf(stderr, "\nnexdyn: retried in halves, %s\n", line.c_str());
+    }
     const double step_seconds = simulation.last_stats().wall_seconds;
     summary.step_seconds += step_seconds;
     summary.newton_iterations += simulation.last_stats().newton_iterations;

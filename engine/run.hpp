@@ -87,6 +87,10 @@ struct RunSummary {
   double output_seconds = 0.0;  // stats rows and frames (not part of step_seconds)
   int64_t newton_iterations = 0;
   double peak_factor_bytes = 0.0;  // Cholesky factors held at once, at most
+  // Steps taken in halves after a failed attempt (retries > 0), and the first one's failure:
+  // "step N: [status] message (a step of dt s from t = T s)".
+  int64_t retried_steps = 0;
+  std::string first_retry;
 };
 
 // The steps this process took.

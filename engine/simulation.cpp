@@ -113,7 +113,7 @@ Simulation::Simulation(const Scene& scene)
 
 StepOutcome Simulation::step() {
   const auto start = std::chrono::steady_clock::now();
-  int retries = 0;
+  RetryLog retries;
   const double t_next = state_.time + scene_.time.dt;
   step_iterations_ = 0;
   balance_ = {};
@@ -122,7 +122,8 @@ StepOutcome Simulation::step() {
   if (sleeping_) sleeping_->wake_near_motion(state_, scene_.time.dt);
   StepOutcome outcome =
       advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
-  stats_.retries = retries;
+  stats_.retries = retries.retries;
+  stats_.retried_because = std::move(retries.first_failure);
   if (outcome.status != StepStatus::ok) return outcome;
   const int iterations = step_iterations_;
   ++state_.step;

@@ -91,7 +91,7 @@ class Simulation {
  private:
   // ---- the retry by halving (engine/step_retry.hpp drives these; simulation.cpp)
   template <typename Stepper>
-  friend StepOutcome advance_or_split(Stepper&, double, double, double, int, int, int&);
+  friend StepOutcome advance_or_split(Stepper&, double, double, double, int, int, RetryLog&);
   // What a failed attempt puts back: the State, the StepHistory and the step's balance so far.
   struct Snapshot {
     State state;

@@ -40,6 +40,12 @@ inline std::string_view step_status_name(StepStatus s) {
   return "?";
 }
 
+// The failed attempts of one step that advance_or_split (engine/step_retry.hpp) split in halves.
+struct RetryLog {
+  int retries = 0;
+  std::string first_failure;  // the first one's status, message, and its dt and start time
+};
+
 struct StepOutcome {
   StepStatus status = StepStatus::ok;
   std::string message;          // empty when ok
@@ -104,6 +110,7 @@ struct StepStats {
   double wall_seconds = 0.0;
   std::optional<double> joint_violation;  // [m] max over joints; only with joints (extra column)
   int retries = 0;  // failed attempts of this step, each retried as two of half the dt
+  std::string retried_because;  // why the first of them failed: "[status] message (a step of ...)"
   EnergyBalance balance;  // where the change of total_energy came from (columns after retries)
   int guarded_steps = 0;  // (sub)steps of this step the energy guard retook with implicit Euler
   int32_t sleeping_bodies = 0;  // bodies asleep at the end of the step (engine/sleeping.hpp)

@@ -1,7 +1,7 @@
 // The retry by halving that every kind of simulation takes (tet bodies: Simulation; particle
 // bodies: MpmSimulation), written once.
 //
-// advance_or_split(stepper, t_start, t_end, dt, level, max_halvings, retries) attempts the
+// advance_or_split(stepper, t_start, t_end, dt, level, max_halvings, log) attempts the
 // interval [t_start, t_end] as one step of dt (the scene's dt at level 0). A failed attempt is put back exactly as it found the simulation, and the
 // interval is attempted as two halves, [t_start, t_mid] and [t_mid, t_end] with
 // t_mid = t_start + (t_end - t_start) / 2, each of which may split again, max_halvings deep at
@@ -12,7 +12,8 @@
 //   replaces.
 // - Step sizes are exact too: a half is a step of dt / 2, not of t_mid - t_start (which can differ
 //   in the last bit), so a retried half is exactly a step of a scene with half the dt.
-// - `retries` counts the failed attempts that were split.
+// - `log.retries` counts the failed attempts that were split, and `log.first_failure` says why
+//   the first of them failed (a retried step is otherwise silent about what went wrong).
 // - When even the smallest attempt fails, its message ends with where the halving stopped:
 //   " (after N halvings of dt, the last try a step of H s from t = T s)".
 // - An outcome with retry_may_help false (particles left the MPM grid) is not split.
@@ -31,12 +32,13 @@
 #include "engine/step_result.hpp"
 
 #include <cstdio>
+#include <string>
 
 namespace nexdyn {
 
 template <typename Stepper>
 StepOutcome advance_or_split(Stepper& stepper, double t_start, double t_end, double dt, int level,
-                             int max_halvings, int& retries) {
+                             int max_halvings, RetryLog& log) {
   const auto before = stepper.snapshot();
   StepOutcome outcome = stepper.attempt(t_start, t_end, dt, level, before);
   if (outcome.ok()) {
@@ -53,11 +55,16 @@ StepOutcome advance_or_split(Stepper& stepper, double t_start, double t_end, dou
     outcome.message += where;
     return outcome;
   }
-  ++retries;
+  ++log.retries;
+  if (log.first_failure.empty()) {
+    char attempt[96];
+    std::snprintf(attempt, sizeof attempt, " (a step of %.3g s from t = %.6g s)", dt, t_start);
+    log.first_failure = "[" + std::string(step_status_name(outcome.status)) + "] " + outcome.message + attempt;
+  }
   const double t_mid = t_start + 0.5 * (t_end - t_start);
   const double half = 0.5 * dt;
-  outcome = advance_or_split(stepper, t_start, t_mid, half, level + 1, max_halvings, retries);
-  if (outcome.ok()) outcome = advance_or_split(stepper, t_mid, t_end, half, level + 1, max_halvings, retries);
+  outcome = advance_or_split(stepper, t_start, t_mid, half, level + 1, max_halvings, log);
+  if (outcome.ok()) outcome = advance_or_split(stepper, t_mid, t_end, half, level + 1, max_halvings, log);
   if (!outcome.ok()) stepper.go_back(before);
   return outcome;
 }

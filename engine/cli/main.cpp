@@ -285,6 +285,9 @@ int report(const RunSummary& summary, const std::filesystem::path& out, bool qui
     std::printf("done: %lld steps in %.3f s, output in %s\n", static_cast<long long>(steps_run(summary)),
                 summary.wall_seconds, out.string().c_str());
     std::printf("%s\n", profile_line(summary).c_str());
+    if (summary.retried_steps > 0)
+      std::printf("steps retried in halves: %lld (the retries column of stats.csv); the first, %s\n",
+                  static_cast<long long>(summary.retried_steps), summary.first_retry.c_str());
   }
   return 0;
 }

@@ -30,7 +30,7 @@ MpmSimulation::MpmSimulation(const Scene& scene) : scene_(scene), model_(*scene.
 
 StepOutcome MpmSimulation::step() {
   const auto start = std::chrono::steady_clock::now();
-  int retries = 0;
+  RetryLog retries;
   step_iterations_ = 0;
   boundary_nodes_ = 0;
   const double t_next = state_.time + scene_.time.dt;
@@ -42,7 +42,8 @@ StepOutcome MpmSimulation::step() {
   stats_.step = state_.step;
   stats_.time = state_.time;
   stats_.newton_iterations = step_iterations_;
-  stats_.retries = retries;
+  stats_.retries = retries.retries;
+  stats_.retried_because = std::move(retries.first_failure);
   {
     ProfileScope scope(&profile_, StepPhase::measure);
     measure(stats_);

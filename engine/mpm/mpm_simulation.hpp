@@ -65,7 +65,7 @@ class MpmSimulation {
  private:
   // ---- the retry by halving (engine/step_retry.hpp drives these)
   template <typename Stepper>
-  friend StepOutcome advance_or_split(Stepper&, double, double, double, int, int, int&);
+  friend StepOutcome advance_or_split(Stepper&, double, double, double, int, int, RetryLog&);
   struct Snapshot {
     MpmState state;
     int64_t boundary_nodes = 0;

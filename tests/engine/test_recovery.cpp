@@ -45,6 +45,18 @@ TEST_CASE("a step too large for its prescribed twist completes through sub-stepp
     const StepOutcome outcome = recovering.step();
     REQUIRE_MESSAGE(outcome.status == StepStatus::ok, outcome.message);
     CHECK(recovering.last_stats().retries >= 1);
+    // Why: the first failed attempt's status and message, and the step it tried (the first step
+    // cannot start, its first tets inverted; later ones also fail to converge in the full dt).
+    const std::string& why = recovering.last_stats().retried_because;
+    INFO(why);
+    const char* starts[] = {"0", "0.1", "0.2", "0.3"};
+    CHECK(why.find(std::string("(a step of 0.1 s from t = ") + starts[k - 1] + " s)") != std::string::npos);
+    if (k == 1) {
+      CHECK(why.find("[non_finite] ") == 0);
+      CHECK(why.find("is inverted") != std::string::npos);
+    } else {
+      CHECK((why.find("[non_finite] ") == 0 || why.find("[max_iterations] ") == 0));
+    }
     CHECK(recovering.state().step == k);
     CHECK(recovering.state().time == test::relative(0.1 * k, 1e-15));
   }

@@ -146,6 +146,24 @@ TEST_CASE("a Newton failure is reported with its step and reason and stats.csv i
   CHECK(fs::exists(dir / "out" / "timings.partial.csv"));
 }
 
+TEST_CASE("a run says how many steps it retried in halves and why the first one failed") {
+  // scenes/twist_big_dt.json: each 0.1 s step inverts the tets next to the turned end face and is
+  // taken as two halves; the summary names the first and the failure that split it.
+  const fs::path dir = test::temp_dir("cli_retry");
+  const auto r = test::run_cli("run " + test::scene_path("twist_big_dt.json").string() + " --steps 2 --out " +
+                               (dir / "out").string());
+  INFO(r.output);
+  CHECK(r.exit_code == 0);
+  CHECK(r.output.find("steps retried in halves: 2 ") != std::string::npos);
+  CHECK(r.output.find("the first, step 1: [non_finite] ") != std::string::npos);
+  CHECK(r.output.find("is inverted") != std::string::npos);
+  CHECK(r.output.find("(a step of 0.1 s from t = 0 s)") != std::string::npos);
+  const auto quiet = test::run_cli("run " + test::scene_path("twist_big_dt.json").string() + " --steps 2 --quiet --out " +
+                                   (dir / "quiet").string());
+  CHECK(quiet.exit_code == 0);
+  CHECK(quiet.output.find("retried") == std::string::npos);
+}
+
 // timings.csv: a row per step whose phases, rest and output add up to its total, which is the
 // step's wall time in stats.csv plus the output; friction shows in a friction scene.
 TEST_CASE("nexdyn run writes timings.csv, a row per step split by phase") {
