@@ -248,7 +248,7 @@ void ElasticAssembly::gradient_hessian(const double* x, double* grad, double* he
     for (int64_t k = b; k < e; ++k) {
       const AffineBody& body = bodies[k];
       if (subset && !subset->vertex_mask[body.node]) continue;
-      const AffineMatrix9 H = orthogonality_weight(body) * orthogonality_hessian(axis_rows(body, x), true);
+      const AffineMatrix9 H = orthogonality_weight(body) * orthogonality_hessian_for_turns(axis_rows(body, x));
       Eigen::Map<Eigen::Matrix<double, 12, 12>> slab(coupling_hessian_.data() + 144 * (affine_group_begin_ + k));
       slab.setZero();
       slab.bottomRightCorner<9, 9>() = H;

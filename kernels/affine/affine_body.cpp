@@ -25,7 +25,11 @@ AffineVector9 orthogonality_gradient(const Eigen::Matrix3d& A) {
   return g;
 }
 
-AffineMatrix9 orthogonality_hessian(const Eigen::Matrix3d& A, bool project) {
+namespace {
+
+enum class TwistCurvature { exact, turned };
+
+AffineMatrix9 orthogonality_hessian_in_q(const Eigen::Matrix3d& A, bool project, TwistCurvature twist) {
   Svd3 svd;
   svd3(A, svd);
   const Eigen::Vector3d& s = svd.sigma;
@@ -37,13 +41,23 @@ AffineMatrix9 orthogonality_hessian(const Eigen::Matrix3d& A, bool project) {
   for (int p = 0; p < 3; ++p) {
     const double si = s[kSigmaPairs[p][0]], sj = s[kSigmaPairs[p][1]];
     d.flip[p] = 4.0 * (si * si + si * sj + sj * sj - 1.0);
-    d.twist[p] = 4.0 * (si * si - si * sj + sj * sj - 1.0);
+    d.twist[p] = twist == TwistCurvature::exact ? 4.0 * (si * si - si * sj + sj * sj - 1.0) : 2.0 * (si - sj) * (si - sj);
   }
   const Matrix9d column_major = project ? isotropic_pk1_derivative<true>(svd, d) : isotropic_pk1_derivative<false>(svd, d);
   AffineMatrix9 H;
   for (int i = 0; i < 9; ++i)
     for (int j = 0; j < 9; ++j) H(kRowMajor[i], kRowMajor[j]) = column_major(i, j);
   return H;
+}
+
+}  // namespace
+
+AffineMatrix9 orthogonality_hessian(const Eigen::Matrix3d& A, bool project) {
+  return orthogonality_hessian_in_q(A, project, TwistCurvature::exact);
+}
+
+AffineMatrix9 orthogonality_hessian_for_turns(const Eigen::Matrix3d& A) {
+  return orthogonality_hessian_in_q(A, true, TwistCurvature::turned);
 }
 
 AffineMassProperties affine_mass_properties(const std::vector<double>& positions, const std::vector<int32_t>& tets) {

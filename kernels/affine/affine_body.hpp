@@ -38,6 +38,15 @@ AffineVector9 orthogonality_gradient(const Eigen::Matrix3d& A);
 // Its Hessian in q's order, exact (project = false) or PSD-projected through the closed-form
 // eigensystem above (project = true).
 AffineMatrix9 orthogonality_hessian(const Eigen::Matrix3d& A, bool project);
+// The Hessian Newton uses, whose line search turns the bodies (CoordinateMap::turn): the projected
+// one with the twists' curvature that of a turn. A turn leaves the energy unchanged, but the
+// exact twist value 4 (s_k^2 - s_k s_l + s_l^2 - 1) = 4 (s_k - s_l)^2 + 4 (s_k s_l - 1) holds the
+// chord's curvature, 4 (s_k s_l - 1), first order in the body's stretch: under load it rivals
+// the rotational inertia (a 5 cm stone: kappa V 4 (s_k s_l - 1) near S / h^2 at a stretch of
+// 1e-5), so Newton's steps along turns came out several times too short and a loaded body
+// crept through tens of full steps. The twists here take the Gauss-Newton value of the residual
+// A A^T - I, 2 (s_k - s_l)^2: second order, and zero for a stretch without shear.
+AffineMatrix9 orthogonality_hessian_for_turns(const Eigen::Matrix3d& A);
 
 // A rigid body's mass properties, integrated exactly over tets (each tet's second moment is
 // V / 20 (sum_i y_i y_i^T + (sum_i y_i)(sum_i y_i)^T) for its corners y_i about any point).

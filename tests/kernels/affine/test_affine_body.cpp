@@ -128,6 +128,47 @@ TEST_CASE("affine orthogonality: zero on rotations, whose directions are free") 
   }
 }
 
+TEST_CASE("affine orthogonality: the Hessian for turns charges a loaded body nothing to turn, and is the projected one on stretches") {
+  std::mt19937 rng(14);
+  const Eigen::Vector3d axes[3] = {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()};
+  auto skew = [](const Eigen::Vector3d& w) {
+    Eigen::Matrix3d W;
+    W << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+    return W;
+  };
+  for (double stretch : {1e-5, 1e-3, 0.05}) {
+    CAPTURE(stretch);
+    // A body turned by R and stretched evenly by 1 + stretch, as a load leaves it: turning it
+    // further (the tangents W A) leaves its energy unchanged, so a turn costs nothing...
+    const Eigen::Matrix3d A = random_affine(rng, 0.0) * (1.0 + stretch);
+    const AffineMatrix9 turned = orthogonality_hessian_for_turns(A);
+    const AffineMatrix9 projected = orthogonality_hessian(A, true);
+    for (const Eigen::Vector3d& w : axes) {
+      const AffineVector9 t = to_q(skew(w) * A);
+      const double reference = projected.norm() * t.squaredNorm();
+      CHECK(std::abs(t.dot(turned * t)) <= 1e-13 * reference);
+      // ... where the exact Hessian's chord charges 4 ((1 + s)^2 - 1) per unit of the twist.
+      CHECK(t.dot(projected * t) / t.squaredNorm() ==
+            doctest::Approx(4.0 * ((1.0 + stretch) * (1.0 + stretch) - 1.0)).epsilon(1e-6));
+    }
+    // Stretches (S A, S symmetric) are the projected Hessian's: only the twists changed.
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+      const int r = k < 3 ? k : (k == 3 ? 0 : (k == 4 ? 0 : 1)), c = k < 3 ? k : (k == 3 ? 1 : 2);
+      S(r, c) = S(c, r) = 1.0;
+      const AffineVector9 t = to_q(S * A);
+      CHECK((turned * t - projected * t).norm() <= 1e-9 * projected.norm() * t.norm());
+    }
+  }
+  // Positive semi-definite everywhere, as a Newton Hessian must be.
+  for (double amount : {0.0, 0.05, 0.4, 0.9}) {
+    for (int sample = 0; sample < 8; ++sample) {
+      const AffineMatrix9 H = orthogonality_hessian_for_turns(random_affine(rng, amount));
+      CHECK(symmetric_eigen(H, false).values.minCoeff() >= -1e-12 * (1.0 + H.norm()));
+    }
+  }
+}
+
 TEST_CASE("affine mass properties: a box's volume, centre and second moment, turned or not") {
   const Eigen::Vector3d lo(-0.3, 0.1, 2.0), hi(0.5, 0.3, 2.6);
   const Eigen::Vector3d size = hi - lo;
