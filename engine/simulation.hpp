@@ -146,11 +146,11 @@ class Simulation {
   bool explicit_acceleration(const std::vector<double>& x, std::vector<double>& a);
   // With joints, a_0 solves the KKT system [M J^T; J 0] [a; mu] = [f; 0] instead of M a = f.
   void constrain_initial_acceleration();
-  // Affine bodies' axis nodes: a = the acceleration of their rigid rotation at positions x, for
-  // the angular velocity of (x_motion, v_motion); followers follow (see there).
   // Affine bodies' axis nodes: v = the rigid rotation with the same angular momentum about the
   // body's centre (at x_next_), dropping the rate of stretch (see there).
   void keep_rigid_axis_velocity();
+  // Affine bodies' axis nodes: a = the acceleration of their rigid rotation at positions x, for
+  // the angular velocity of (x_motion, v_motion); followers follow (see there).
   void set_rigid_rotation_acceleration(const std::vector<double>& x_motion, const std::vector<double>& v_motion,
                                        const std::vector<double>& x, std::vector<double>& a) const;
 
