@@ -14,7 +14,11 @@ the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with fric
     python3 scripts/make_pile.py 100 --affine --out /tmp/pile_100_affine.json
     python3 scripts/make_pile.py 100 --youngs 1e9 --out /tmp/pile_100_e1e9.json
 
-`--affine [KAPPA]` makes every body affine (material "stone", density 1000, orthogonality stiffness
+    python3 scripts/make_pile.py 1000 --affine --block 0.003 --integrator default   # block_1000_affine
+
+`--block GAP` packs instead: 0.1 m boxes (one cell each way, 6 tets), GAP metres apart in a
+block of columns x layers x rows, unrotated, 0.05 m above the floor, so that the block lands as
+one (the hardest shape for contact counts). `--affine [KAPPA]` makes every body affine (material "stone", density 1000, orthogonality stiffness
 KAPPA Pa, or the engine's default); `--youngs` sets the rubber's Young's modulus; `--integrator`
 names the time integrator (`default`: leave the key out, the engine's default).
 
@@ -91,6 +95,29 @@ def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integ
     }
 
 
+def block(count, steps, gap, affine=False, stiffness=None, youngs=1e6, integrator="implicit_euler"):
+    side = max(1, math.ceil(count ** (1.0 / 3.0)))
+    size = 0.1
+    pitch = size + gap
+    half = 0.5 * side * pitch + 0.1
+    material = "stone" if affine else "rubber"
+    bodies = []
+    for i in range(count):
+        layer, cell = divmod(i, side * side)
+        row, col = divmod(cell, side)
+        centre = [(col + 0.5) * pitch - 0.5 * side * pitch, 0.05 + 0.5 * size + layer * pitch,
+                  (row + 0.5) * pitch - 0.5 * side * pitch]
+        bodies.append({"box": {"size": [size, size, size], "cells": [1, 1, 1]}, "material": material,
+                       "translate": [round(c, 9) for c in centre]})
+    scene = pile(1, steps, "", affine, stiffness, youngs, integrator)
+    walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
+             ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
+    scene["name"] = f"block_{count}_affine" if affine else f"block_{count}"
+    scene["bodies"] = bodies
+    scene["obstacles"] = [{"plane": {"point": p, "normal": n}} for p, n in walls]
+    return scene
+
+
 def material_of(affine, stiffness, youngs):
     if affine:
         stone = {"model": "affine", "density": 1000}
@@ -114,22 +141,30 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("count", type=int, help="number of bodies (1 to 100000)")
     parser.add_argument("--steps", type=int, default=100)
-    parser.add_argument("--out", help="default: scenes/stress/pile_COUNT.json (pile_COUNT_affine.json)")
+    parser.add_argument("--out", help="default: scenes/stress/pile_COUNT.json (pile_COUNT_affine.json, block_...)")
     parser.add_argument("--affine", nargs="?", const=-1.0, type=float, metavar="KAPPA",
                         help="affine bodies, with this orthogonality stiffness [Pa] if given")
     parser.add_argument("--youngs", type=float, default=1e6, help="the rubber's Young's modulus [Pa]")
     parser.add_argument("--integrator", default="implicit_euler", help="time.integrator ('default': none)")
+    parser.add_argument("--block", type=float, metavar="GAP",
+                        help="boxes packed GAP metres apart in one block instead of a pile")
     args = parser.parse_args()
     if not 1 <= args.count <= 100000:
         raise SystemExit(f"count: expected 1 to 100000, got {args.count}")
+    if args.block is not None and not args.block > 0.0:
+        raise SystemExit(f"--block: expected a gap > 0 m, got {args.block}")
     root = pathlib.Path(__file__).resolve().parent.parent
     affine = args.affine is not None
-    name = f"pile_{args.count}_affine" if affine else f"pile_{args.count}"
+    kind = "block" if args.block is not None else "pile"
+    name = f"{kind}_{args.count}_affine" if affine else f"{kind}_{args.count}"
     out = pathlib.Path(args.out) if args.out else root / "scenes" / "stress" / f"{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     mesh_dir = os.path.relpath(root / "scenes" / "meshes", out.parent.resolve()) + "/"
     stiffness = args.affine if affine and args.affine > 0 else None
-    scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator)
+    if args.block is not None:
+        scene = block(args.count, args.steps, args.block, affine, stiffness, args.youngs, args.integrator)
+    else:
+        scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator)
     out.write_text(json.dumps(scene, indent=1) + "\n")
     print(f"{out}: {args.count} bodies")
 
