@@ -77,8 +77,6 @@ def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integ
         body["rotate_deg"] = rotation(i)
         body["translate"] = [round(t, 9) for t in translate]
         bodies.append(body)
-    walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
-             ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
     time = {"dt": 0.01, "steps": steps}
     if integrator != "default":
         time["integrator"] = integrator
@@ -90,7 +88,7 @@ def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integ
         "contact": {"dhat": 1e-3, "friction": 0.3},
         "materials": {material: material_of(affine, stiffness, youngs)},
         "bodies": bodies,
-        "obstacles": [{"plane": {"point": p, "normal": n}} for p, n in walls],
+        "obstacles": container(half),
         "output": {"every": 10, "formats": ["vtu", "obj", "bodies"] if affine else ["vtu", "obj"]},
     }
 
@@ -110,12 +108,17 @@ def block(count, steps, gap, affine=False, stiffness=None, youngs=1e6, integrato
         bodies.append({"box": {"size": [size, size, size], "cells": [1, 1, 1]}, "material": material,
                        "translate": [round(c, 9) for c in centre]})
     scene = pile(1, steps, "", affine, stiffness, youngs, integrator)
-    walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
-             ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
     scene["name"] = f"block_{count}_affine" if affine else f"block_{count}"
     scene["bodies"] = bodies
-    scene["obstacles"] = [{"plane": {"point": p, "normal": n}} for p, n in walls]
+    scene["obstacles"] = container(half)
     return scene
+
+
+def container(half):
+    """The floor at y = 0 and four walls at x, z = -half and +half, as obstacle planes."""
+    walls = [([0, 0, 0], [0, 1, 0]), ([-half, 0, 0], [1, 0, 0]), ([half, 0, 0], [-1, 0, 0]),
+             ([0, 0, -half], [0, 0, 1]), ([0, 0, half], [0, 0, -1])]
+    return [{"plane": {"point": p, "normal": n}} for p, n in walls]
 
 
 def material_of(affine, stiffness, youngs):
