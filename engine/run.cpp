@@ -103,6 +103,7 @@ class ProgressBar {
   void finish() {
     if (enabled_) std::fprintf(stderr, "\n");
   }
+  bool enabled() const { return enabled_; }
 
  private:
   bool enabled_;
@@ -250,109 +251,210 @@ std::string frame_bodies(const Scene&, const MpmSimulation&) {
   throw std::logic_error("MPM scenes have no bodies file (the scene reader refuses output.bodies)");
 }
 
-// Steps `simulation` from record.steps_done + 1 to record.total_steps, writing rows, frames and
-// checkpoints into `out` (and frame 0 first on a fresh run; a resumed one has it in its record).
-// `stats` and `timings` are open at the end of record.steps_done's rows.
+// The runner of either kind of simulation. Without an output folder it only steps.
 template <typename Sim>
-RunSummary step_loop(const Scene& scene, const fs::path& out, Sim& simulation, RunRecord record,
-                     RowFile& stats, RowFile& timings, bool show_progress, bool fresh, const SignalHook& hook) {
-  const auto start = std::chrono::steady_clock::now();
-  const fs::path frames_dir = out / "frames";
-  auto write_frame = [&](int64_t frame) {
-    if (scene.output.vtu) {
-      const std::string name = frame_file_name(frame, "vtu");
-      write_file_atomically(frames_dir / name, frame_vtu(scene, simulation));
-      record.pvd_frames.emplace_back(simulation.state().time, "frames/" + name);
-      write_file_atomically(out / "scene.pvd", pvd_document(record.pvd_frames));
-    }
-    if (scene.output.obj) write_file_atomically(frames_dir / frame_file_name(frame, "obj"), frame_obj(scene, simulation));
-    if (scene.output.bodies) write_file_atomically(frames_dir / bodies_file_name(frame), frame_bodies(scene, simulation));
-  };
+class RunnerOf final : public Runner {
+ public:
+  // A fresh run (`stats` and `timings` null without an output folder), or a resumed one whose
+  // rows files are open at the end of record.steps_done's rows.
+  RunnerOf(const Scene& scene, std::unique_ptr<Scene> owned, std::unique_ptr<Sim> simulation, RunRecord record,
+           fs::path out, std::unique_ptr<RowFile> stats, std::unique_ptr<RowFile> timings, bool progress, bool fresh,
+           const SignalHook& hook)
+      : Runner(scene, std::move(owned), std::move(out), std::move(record), hook),
+        simulation_(std::move(simulation)),
+        stats_(std::move(stats)),
+        timings_(std::move(timings)),
+        progress_(progress, record_.total_steps),
+        before_(simulation_->profile()) {
+    summary_.first_step = record_.steps_done + 1;
+    summary_.steps_done = record_.steps_done;
+    if (fresh) write_frame(0);
+  }
 
-  RunSummary summary;
-  summary.first_step = record.steps_done + 1;
-  summary.steps_done = record.steps_done;
-  StopSignals signals;
-  ProgressBar progress(show_progress, record.total_steps);
-  if (fresh) write_frame(0);
-  // A failed step leaves the simulation in the state before it (Simulation::step), so a
-  // checkpoint taken then holds the last good state.
-  auto checkpoint = [&] {
-    CheckpointWriter state;
-    save_simulation(state, simulation);
-    record.stats_bytes = stats.bytes();
-    record.timings_bytes = timings.bytes();
-    summary.checkpoint = write_checkpoint(out, record, state.bytes(), hook).string();
-  };
-  StepProfile before = simulation.profile();
-  for (int64_t step = record.steps_done + 1; step <= record.total_steps; ++step) {
-    hook.at(step, SignalHook::Place::begin);
-    const StepOutcome outcome = simulation.step();
+  StepOutcome step() override {
+    if (closed_) throw std::logic_error("Runner::step after close");
+    if (finished()) throw std::logic_error("Runner::step past the run's last step");
+    const int64_t step = record_.steps_done + 1;
+    hook_.at(step, SignalHook::Place::begin);
+    const StepOutcome outcome = simulation_->step();
     if (outcome.status != StepStatus::ok) {
-      summary.ok = false;
+      summary_.ok = false;
       char buf[128];
       std::snprintf(buf, sizeof(buf), "step %lld (t = %.6g s) failed [%s]: ", static_cast<long long>(step),
-                    simulation.state().time + scene.time.dt, std::string(step_status_name(outcome.status)).c_str());
-      summary.message = buf + outcome.message;
-      checkpoint();
-      break;
+                    simulation_->state().time + scene_.time.dt, std::string(step_status_name(outcome.status)).c_str());
+      summary_.message = buf + outcome.message;
+      if (has_output()) checkpoint({});
+      return outcome;
     }
-    if (const std::string& why = simulation.last_stats().retried_because; !why.empty()) {
+    const StepStats& stats = simulation_->last_stats();
+    if (const std::string& why = stats.retried_because; !why.empty()) {
       const std::string line = "step " + std::to_string(step) + ": " + why;
-      if (summary.retried_steps++ == 0) summary.first_retry = line;
-      if (show_progress) std::fprintf(stderr, "\nnexdyn: retried in halves, %s\n", line.c_str());
+      if (summary_.retried_steps++ == 0) summary_.first_retry = line;
+      if (progress_.enabled()) std::fprintf(stderr, "\nnexdyn: retried in halves, %s\n", line.c_str());
     }
-    const double step_seconds = simulation.last_stats().wall_seconds;
-    summary.step_seconds += step_seconds;
-    summary.newton_iterations += simulation.last_stats().newton_iterations;
+    summary_.step_seconds += stats.wall_seconds;
+    summary_.newton_iterations += stats.newton_iterations;
     const auto output_start = std::chrono::steady_clock::now();
-    stats.write(stats_row(simulation.last_stats()));
-    hook.at(step, SignalHook::Place::row);
-    if (step % scene.output.every == 0) write_frame(step);
+    if (stats_) stats_->write(stats_row(stats));
+    hook_.at(step, SignalHook::Place::row);
+    if (has_output() && step % scene_.output.every == 0) write_frame(step);
     const double output_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - output_start).count();
-    summary.output_seconds += output_seconds;
-    timings.write(timings_row(step, before, simulation.profile(), step_seconds, output_seconds));
-    before = simulation.profile();
-    summary.steps_done = record.steps_done = step;
-    progress.update(step, simulation.state().time, step == record.total_steps);
-    const bool stop = signals.received() != 0 && step < record.total_steps;
-    if (stop || (record.checkpoint_every > 0 && step % record.checkpoint_every == 0 && step < record.total_steps))
-      checkpoint();
-    if (stop) {
-      summary.interrupted = true;
-      summary.signal = signals.received();
-      break;
+    summary_.output_seconds += output_seconds;
+    if (timings_) timings_->write(timings_row(step, before_, simulation_->profile(), stats.wall_seconds, output_seconds));
+    before_ = simulation_->profile();
+    summary_.steps_done = record_.steps_done = step;
+    progress_.update(step, simulation_->state().time, finished());
+    if (has_output() && record_.checkpoint_every > 0 && step % record_.checkpoint_every == 0 && !finished())
+      checkpoint({});
+    return outcome;
+  }
+
+  fs::path checkpoint(const fs::path& file) override {
+    if (closed_) throw std::logic_error("Runner::checkpoint after close");
+    if (file.empty() && !has_output())
+      throw std::runtime_error("a run without an output folder needs a file to write its checkpoint to");
+    CheckpointWriter state;
+    save_simulation(state, *simulation_);
+    if (!file.empty()) {
+      CheckpointWriter payload;
+      RunRecord record = record_;
+      record.stats_bytes = record.timings_bytes = 0;  // a file outside the run: no rows to cut back to
+      put_record(payload, record);
+      write_checkpoint_file(file, payload.bytes() + state.bytes());
+      return file;
     }
+    if (last_checkpoint_step_ == record_.steps_done) return summary_.checkpoint;
+    record_.stats_bytes = stats_->bytes();
+    record_.timings_bytes = timings_->bytes();
+    summary_.checkpoint = write_checkpoint(out_, record_, state.bytes(), hook_).string();
+    last_checkpoint_step_ = record_.steps_done;
+    return summary_.checkpoint;
   }
-  progress.finish();
-  const bool complete = summary.ok && !summary.interrupted;
-  stats.finish(complete);
-  timings.finish(complete);
-  if (complete) {
-    remove_checkpoints(out);
-    summary.checkpoint.clear();
+
+  const RunSummary& close() override {
+    if (closed_) return summary_;
+    closed_ = true;
+    progress_.finish();
+    const bool complete = summary_.ok && finished();
+    if (stats_) stats_->finish(complete);
+    if (timings_) timings_->finish(complete);
+    if (complete && has_output()) {
+      remove_checkpoints(out_);
+      summary_.checkpoint.clear();
+    }
+    summary_.profile = simulation_->profile();
+    summary_.peak_factor_bytes = simulation_->peak_factor_bytes();
+    summary_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    return summary_;
   }
-  summary.profile = simulation.profile();
-  summary.peak_factor_bytes = simulation.peak_factor_bytes();
-  summary.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return summary;
+
+  const StepStats& last_stats() const override { return simulation_->last_stats(); }
+  double time() const override { return simulation_->state().time; }
+  Simulation* simulation() override {
+    if constexpr (std::is_same_v<Sim, Simulation>) return simulation_.get();
+    return nullptr;
+  }
+  MpmSimulation* mpm_simulation() override {
+    if constexpr (std::is_same_v<Sim, MpmSimulation>) return simulation_.get();
+    return nullptr;
+  }
+
+ private:
+  void write_frame(int64_t frame) {
+    if (!has_output()) return;
+    const fs::path frames_dir = out_ / "frames";
+    const Sim& simulation = *simulation_;
+    if (scene_.output.vtu) {
+      const std::string name = frame_file_name(frame, "vtu");
+      write_file_atomically(frames_dir / name, frame_vtu(scene_, simulation));
+      record_.pvd_frames.emplace_back(simulation.state().time, "frames/" + name);
+      write_file_atomically(out_ / "scene.pvd", pvd_document(record_.pvd_frames));
+    }
+    if (scene_.output.obj) write_file_atomically(frames_dir / frame_file_name(frame, "obj"), frame_obj(scene_, simulation));
+    if (scene_.output.bodies)
+      write_file_atomically(frames_dir / bodies_file_name(frame), frame_bodies(scene_, simulation));
+  }
+
+  std::unique_ptr<Sim> simulation_;
+  std::unique_ptr<RowFile> stats_, timings_;
+  ProgressBar progress_;
+  StepProfile before_;
+  int64_t last_checkpoint_step_ = -1;
+  bool closed_ = false;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+template <typename Sim>
+std::unique_ptr<Runner> make_runner(const Scene& scene, std::unique_ptr<Scene> owned, std::unique_ptr<Sim> simulation,
+                                    RunRecord record, const fs::path& out, std::unique_ptr<RowFile> stats,
+                                    std::unique_ptr<RowFile> timings, bool progress, bool fresh,
+                                    const SignalHook& hook) {
+  return std::make_unique<RunnerOf<Sim>>(scene, std::move(owned), std::move(simulation), std::move(record), out,
+                                         std::move(stats), std::move(timings), progress, fresh, hook);
+}
+
+// A simulation restored from a checkpoint payload: the record, the scene it names (checked
+// against the record's checksums), the simulation. CheckpointError when the checkpoint does not fit.
+struct Restored {
+  RunRecord record;
+  std::unique_ptr<Scene> scene;
+  std::unique_ptr<Simulation> simulation;
+  std::unique_ptr<MpmSimulation> mpm_simulation;
+};
+
+Restored restore(const std::string& payload, const fs::path& file, const fs::path& mesh_cache_dir) {
+  Restored r;
+  CheckpointReader in(payload, file.string());
+  r.record = get_record(in);
+  // The scene must be the one the run started from: a changed file is not this run.
+  if (file_crc(r.record.scene_file) != r.record.scene_crc)
+    throw std::runtime_error(r.record.scene_file.string() + " changed since the run started; resuming it "
+                             "would not continue the same run");
+  r.scene = std::make_unique<Scene>(load_scene(r.record.scene_file, {}, mesh_cache_dir));
+  if (model_crc(*r.scene) != r.record.model_crc)
+    throw std::runtime_error(r.record.scene_file.string() + ": a mesh changed since the run started; "
+                             "resuming would not continue the same run");
+  try {
+    override_integrator(*r.scene, r.record.integrator, r.record.rho_inf);
+    if (!r.record.energy_guard.empty()) r.scene->time.energy_guard = r.record.energy_guard == "on";
+  } catch (const std::runtime_error& e) {
+    in.fail(std::string("the recorded integrator: ") + e.what());
+  }
+  int64_t restored_step = 0;
+  if (r.scene->mpm) {
+    r.mpm_simulation = std::make_unique<MpmSimulation>(*r.scene);
+    restore_simulation(in, *r.mpm_simulation);
+    restored_step = r.mpm_simulation->state().step;
+  } else {
+    r.simulation = std::make_unique<Simulation>(*r.scene);
+    restore_simulation(in, *r.simulation);
+    restored_step = r.simulation->state().step;
+  }
+  in.expect_end();
+  if (restored_step != r.record.steps_done) in.fail("the state is not that of the recorded step");
+  return r;
+}
+
+std::unique_ptr<Runner> resume_from_file(const fs::path& file, const SignalHook& hook) {
+  Restored r = restore(read_checkpoint_file(file), file, {});
+  const Scene& scene = *r.scene;
+  if (r.mpm_simulation)
+    return make_runner(scene, std::move(r.scene), std::move(r.mpm_simulation), std::move(r.record), {}, nullptr,
+                       nullptr, false, false, hook);
+  return make_runner(scene, std::move(r.scene), std::move(r.simulation), std::move(r.record), {}, nullptr, nullptr,
+                     false, false, hook);
 }
 
 }  // namespace
 
-RunSummary run_scene(const Scene& scene, const RunOptions& options) {
-  const SignalHook hook = signal_hook_from_environment();
-  const fs::path out = options.out_dir;
-  const fs::path frames_dir = out / "frames";
-  std::error_code ec;
-  fs::create_directories(frames_dir, ec);
-  if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
-  remove_old_frames(frames_dir);
-  remove_checkpoints(out);
-  fs::remove(out / "scene.pvd", ec);
-  // What `nexdyn render` needs beside the frames (engine/render/view_file.hpp).
-  write_file_atomically(out / "view.json", view_document(scene_view(scene)));
+Runner::Runner(const Scene& scene, std::unique_ptr<Scene> owned, fs::path out, RunRecord record, SignalHook hook)
+    : scene_(scene), owned_scene_(std::move(owned)), out_(std::move(out)), record_(std::move(record)), hook_(hook) {}
 
+Runner::~Runner() = default;
+
+std::unique_ptr<Runner> Runner::start(const Scene& scene, const RunOptions& options) {
+  const SignalHook hook = signal_hook_from_environment();  // a malformed hook: an error before any output
+  const fs::path out = options.out_dir;
   RunRecord record;
   record.scene_file = fs::absolute(scene.file);
   record.scene_crc = file_crc(scene.file);
@@ -362,20 +464,32 @@ RunSummary run_scene(const Scene& scene, const RunOptions& options) {
   record.energy_guard = options.energy_guard;
   record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
   record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
-
-  RowFile stats(out, "stats", stats_header(scene));
-  RowFile timings(out, "timings", timings_header());
-  if (scene.mpm) {
-    MpmSimulation simulation(scene);
-    return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true, hook);
+  std::unique_ptr<RowFile> stats, timings;
+  if (!out.empty()) {
+    const fs::path frames_dir = out / "frames";
+    std::error_code ec;
+    fs::create_directories(frames_dir, ec);
+    if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
+    remove_old_frames(frames_dir);
+    remove_checkpoints(out);
+    fs::remove(out / "scene.pvd", ec);
+    // What `nexdyn render` needs beside the frames (engine/render/view_file.hpp).
+    write_file_atomically(out / "view.json", view_document(scene_view(scene)));
+    stats = std::make_unique<RowFile>(out, "stats", stats_header(scene));
+    timings = std::make_unique<RowFile>(out, "timings", timings_header());
   }
-  Simulation simulation(scene);
-  return step_loop(scene, out, simulation, std::move(record), stats, timings, options.progress, true, hook);
+  if (scene.mpm)
+    return make_runner(scene, nullptr, std::make_unique<MpmSimulation>(scene), std::move(record), out,
+                       std::move(stats), std::move(timings), options.progress, true, hook);
+  return make_runner(scene, nullptr, std::make_unique<Simulation>(scene), std::move(record), out, std::move(stats),
+                     std::move(timings), options.progress, true, hook);
 }
 
-RunSummary resume_run(const fs::path& out, bool progress) {
-  const SignalHook hook = signal_hook_from_environment();
+std::unique_ptr<Runner> Runner::resume(const fs::path& source, bool progress) {
   std::error_code ec;
+  const SignalHook hook = signal_hook_from_environment();  // a malformed hook: an error before any output
+  if (fs::is_regular_file(source, ec)) return resume_from_file(source, hook);
+  const fs::path& out = source;
   if (!fs::exists(out / "stats.partial.csv", ec)) {
     if (fs::exists(out / "stats.csv", ec))
       throw CheckpointError(out.string() + ": the run finished (stats.csv is complete); nothing to resume");
@@ -384,59 +498,62 @@ RunSummary resume_run(const fs::path& out, bool progress) {
   const std::vector<fs::path> found = list_checkpoints(out);
   if (found.empty()) throw CheckpointError(out.string() + ": no checkpoint in " + checkpoint_folder(out).string());
   for (const fs::path& path : found) {
-    std::string payload;
-    RunRecord record;
-    std::unique_ptr<Scene> scene;
-    std::unique_ptr<Simulation> simulation;
-    std::unique_ptr<MpmSimulation> mpm_simulation;
+    Restored r;
+    std::unique_ptr<RowFile> stats, timings;
     try {
-      payload = read_checkpoint_file(path);
-      CheckpointReader in(payload, path.string());
-      record = get_record(in);
-      // The scene must be the one the run started from: a changed file is not this run.
-      if (file_crc(record.scene_file) != record.scene_crc)
-        throw std::runtime_error(record.scene_file.string() + " changed since the run started; resuming it "
-                                 "would not continue the same run");
-      scene = std::make_unique<Scene>(load_scene(record.scene_file, {}, out / "meshes"));
-      if (model_crc(*scene) != record.model_crc)
-        throw std::runtime_error(record.scene_file.string() + ": a mesh changed since the run started; "
-                                 "resuming would not continue the same run");
-      try {
-        override_integrator(*scene, record.integrator, record.rho_inf);
-        if (!record.energy_guard.empty()) scene->time.energy_guard = record.energy_guard == "on";
-      } catch (const std::runtime_error& e) {
-        in.fail(std::string("the recorded integrator: ") + e.what());
-      }
-      int64_t restored_step = 0;
-      if (scene->mpm) {
-        mpm_simulation = std::make_unique<MpmSimulation>(*scene);
-        restore_simulation(in, *mpm_simulation);
-        restored_step = mpm_simulation->state().step;
-      } else {
-        simulation = std::make_unique<Simulation>(*scene);
-        restore_simulation(in, *simulation);
-        restored_step = simulation->state().step;
-      }
-      in.expect_end();
-      if (restored_step != record.steps_done) in.fail("the state is not that of the recorded step");
+      r = restore(read_checkpoint_file(path), path, out / "meshes");
+      stats = std::make_unique<RowFile>(out, "stats", stats_header(*r.scene), r.record.stats_bytes);
+      timings = std::make_unique<RowFile>(out, "timings", timings_header(), r.record.timings_bytes);
     } catch (const CheckpointError& e) {
       std::fprintf(stderr, "nexdyn: skipping checkpoint %s\n", e.what());
       continue;
     }
-    std::unique_ptr<RowFile> stats, timings;
-    try {
-      stats = std::make_unique<RowFile>(out, "stats", stats_header(*scene), record.stats_bytes);
-      timings = std::make_unique<RowFile>(out, "timings", timings_header(), record.timings_bytes);
-    } catch (const CheckpointError& e) {
-      std::fprintf(stderr, "nexdyn: skipping checkpoint %s: %s\n", path.string().c_str(), e.what());
-      continue;
-    }
     // Frames past the checkpoint are written again; the ones before are listed in its record.
-    if (mpm_simulation)
-      return step_loop(*scene, out, *mpm_simulation, std::move(record), *stats, *timings, progress, false, hook);
-    return step_loop(*scene, out, *simulation, std::move(record), *stats, *timings, progress, false, hook);
+    const Scene& scene = *r.scene;
+    if (r.mpm_simulation)
+      return make_runner(scene, std::move(r.scene), std::move(r.mpm_simulation), std::move(r.record), out,
+                         std::move(stats), std::move(timings), progress, false, hook);
+    return make_runner(scene, std::move(r.scene), std::move(r.simulation), std::move(r.record), out, std::move(stats),
+                       std::move(timings), progress, false, hook);
   }
   throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");
+}
+
+namespace {
+
+// Steps a runner to its end, or until a step fails, or until SIGINT or SIGTERM (then after the
+// step under way, with a checkpoint of it).
+RunSummary run_to_end(Runner& runner) {
+  StopSignals signals;
+  int stopped_by = 0;
+  while (!runner.finished()) {
+    if (runner.step().status != StepStatus::ok) break;
+    if (signals.received() != 0 && !runner.finished()) {
+      stopped_by = signals.received();
+      runner.checkpoint();
+      break;
+    }
+  }
+  RunSummary summary = runner.close();
+  if (stopped_by != 0) {
+    summary.interrupted = true;
+    summary.signal = stopped_by;
+  }
+  return summary;
+}
+
+}  // namespace
+
+RunSummary run_scene(const Scene& scene, const RunOptions& options) {
+  if (options.out_dir.empty()) throw std::logic_error("run_scene needs an output folder");
+  return run_to_end(*Runner::start(scene, options));
+}
+
+RunSummary resume_run(const fs::path& out, bool progress) {
+  std::error_code ec;
+  if (fs::is_regular_file(out, ec))
+    throw CheckpointError(out.string() + ": a file; nexdyn resume takes the output folder of a run");
+  return run_to_end(*Runner::resume(out, progress));
 }
 
 }  // namespace nexdyn

@@ -16,6 +16,9 @@
 // writes the same stats.csv (but for wall_seconds) and the same frames as one never stopped.
 #pragma once
 
+#include "engine/mpm/mpm_simulation.hpp"
+#include "engine/run_record.hpp"
+#include "engine/run_signals.hpp"
 #include "engine/scene/scene.hpp"
 #include "engine/simulation.hpp"
 #include "engine/step_profile.hpp"
@@ -23,6 +26,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <string>
 
 namespace nexdyn {
@@ -105,6 +109,60 @@ std::string profile_line(const RunSummary& summary);
 std::string stats_header(const Scene& scene);
 std::string stats_row(const StepStats& s);
 
+// A run under way: a simulation (tets or particles), the output folder it writes as it goes
+// (none when out_dir is empty: it only steps) and the record its checkpoints keep. run_scene and
+// resume_run step one to its end; the Python module (engine/python) one step at a time.
+class Runner {
+ public:
+  // A fresh run of `scene`, which must outlive the runner. With an output folder: clears its old
+  // frames and checkpoints, writes view.json, the rows files' headers and frame 0.
+  static std::unique_ptr<Runner> start(const Scene& scene, const RunOptions& options);
+  // Continues the run in the output folder `source` from its newest valid checkpoint (a
+  // checkpoint that fails its checks is skipped with a line on stderr), writing on into the
+  // folder; or, when `source` is a checkpoint file, from it without an output folder. Throws
+  // CheckpointError when there is nothing valid to resume.
+  static std::unique_ptr<Runner> resume(const std::filesystem::path& source, bool progress);
+  virtual ~Runner();
+  Runner(const Runner&) = delete;
+  Runner& operator=(const Runner&) = delete;
+
+  // The next step, then its stats and timings rows, its frame and its periodic checkpoint. A failed
+  // step leaves the state before it, writes a checkpoint of that (with an output folder) and sets
+  // summary().ok to false with the reason in summary().message.
+  virtual StepOutcome step() = 0;
+  bool finished() const { return record_.steps_done >= record_.total_steps; }
+  // A checkpoint of the last step: into the output folder's checkpoints/ when `file` is empty
+  // (the newest two kept), else into `file` (a run without a folder needs one). Its path.
+  virtual std::filesystem::path checkpoint(const std::filesystem::path& file = {}) = 0;
+  // Ends the run: when every step is done, stats.csv and timings.csv take their final names and
+  // the checkpoints go. Fills the summary's totals. Only close() may be called after it.
+  virtual const RunSummary& close() = 0;
+
+  const Scene& scene() const { return scene_; }
+  bool has_output() const { return !out_.empty(); }
+  const std::filesystem::path& out_dir() const { return out_; }
+  int64_t steps_done() const { return record_.steps_done; }
+  int64_t total_steps() const { return record_.total_steps; }
+  const RunSummary& summary() const { return summary_; }
+  virtual const StepStats& last_stats() const = 0;
+  virtual double time() const = 0;
+  // The simulation being stepped: exactly one of the two is not null.
+  virtual Simulation* simulation() = 0;
+  virtual MpmSimulation* mpm_simulation() = 0;
+
+ protected:
+  Runner(const Scene& scene, std::unique_ptr<Scene> owned, std::filesystem::path out, RunRecord record,
+         SignalHook hook);
+  const Scene& scene_;
+  std::unique_ptr<Scene> owned_scene_;  // a resumed run's scene, read from the checkpoint's record
+  std::filesystem::path out_;
+  RunRecord record_;
+  SignalHook hook_;
+  RunSummary summary_;
+};
+
+// A fresh run into options.out_dir, to its end (or a failed step, or SIGINT / SIGTERM: then
+// after the step under way, with a checkpoint of it).
 RunSummary run_scene(const Scene& scene, const RunOptions& options);
 
 // Continues the run in `out_dir` from its newest valid checkpoint (a checkpoint that fails its

@@ -300,7 +300,8 @@ void Simulation::update_with_contact(const StepContext& ctx) {
 }
 
 void Simulation::finish(const StepContext& ctx, double held_kinetic_before) {
-  state_.x.swap(x_next_);
+  // Copied, not swapped: x keeps its buffer for the whole run (the Python module's arrays view it).
+  std::copy(x_next_.begin(), x_next_.end(), state_.x.begin());
   const bool dynamic = !ctx.scheme->is_static;
   prescribe(ctx.t_end, state_.x, dynamic ? &state_.v : nullptr, dynamic ? &state_.a : nullptr,
             dynamic ? &state_.a_bar : nullptr);
