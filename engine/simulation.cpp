@@ -308,6 +308,16 @@ void Simulation::finish(const StepContext& ctx, double held_kinetic_before) {
   balance_.boundary_work += held_kinetic_energy(model_, state_.v) - held_kinetic_before;
 }
 
+void Simulation::set_velocities(const double* v) {
+  const double before = motion_sums().kinetic;
+  for (int32_t i = 0; i < model_.num_vertices; ++i)
+    if (model_.dirichlet[i] < 0)
+      for (int d = 0; d < 3; ++d) state_.v[3 * int64_t{i} + d] = v[3 * int64_t{i} + d];
+  map_.follow(state_.v.data());
+  if (sleeping_) sleeping_->wake_moving(state_);  // the next step's hold_sleeping lets them go
+  history_.energy_before += motion_sums().kinetic - before;
+}
+
 void Simulation::drop_caches() {
   newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
   kinematic_on_target_ = false;

@@ -56,6 +56,20 @@ void SleepingBodies::wake(int32_t body, const State& state) {
   restart_rest(body, state);
 }
 
+void SleepingBodies::wake_moving(const State& state) {
+  std::vector<int32_t>& group = history_.sleep_group;
+  std::vector<int32_t> woken;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t g = group[model_.vertex_body[v]];
+    const double* velocity = &state.v[3 * int64_t{v}];
+    if (g >= 0 && (velocity[0] != 0.0 || velocity[1] != 0.0 || velocity[2] != 0.0)) woken.push_back(g);
+  }
+  if (woken.empty()) return;
+  std::sort(woken.begin(), woken.end());
+  for (int32_t b = 0; b < static_cast<int32_t>(kind_.size()); ++b)
+    if (group[b] >= 0 && std::binary_search(woken.begin(), woken.end(), group[b])) wake(b, state);
+}
+
 void SleepingBodies::wake_near_motion(const State& state, double dt) {
   std::vector<int32_t>& group = history_.sleep_group;
   if (std::none_of(group.begin(), group.end(), [](int32_t g) { return g >= 0; })) return;

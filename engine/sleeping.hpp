@@ -49,6 +49,9 @@ class SleepingBodies {
   // every body awake and its rest beginning at state.x.
   void adopt(const State& state);
 
+  // After a scripted change of velocities: wakes every sleeping group one of whose bodies now
+  // has a vertex moving.
+  void wake_moving(const State& state);
   // Before a step of length dt: wakes the sleeping groups an awake body's motion may reach.
   void wake_near_motion(const State& state, double dt);
   // After a step (with candidates: the contact candidates at state.x, within dhat): counts the

@@ -24,6 +24,7 @@
 #include "engine/step_profile.hpp"
 #include "engine/step_result.hpp"
 
+#include <algorithm>
 #include <cstdint>
 
 namespace nexdyn {
@@ -57,6 +58,8 @@ class MpmSimulation {
   // for bit (checkpoints: engine/output/step_checkpoint.hpp, which checks them first).
   double previous_total() const { return previous_total_; }
   void adopt(const MpmState& state, double previous_total);
+  // A scripted kick between steps: the particles' velocities from `v` (3 x particles).
+  void set_velocities(const double* v) { std::copy_n(v, state_.particles.v.size(), state_.particles.v.begin()); }
 
   // Test seam: attempts at `level` (0: the scene's dt, k: its k-th halving) fail before they
   // start, as a failed solve would (Simulation::fail_attempts_at_level).
