@@ -41,7 +41,7 @@ jobs=$(nproc)
 # them first (nothing to do after `./build.sh test`).
 case "${1:-build}" in
   demo) targets=(--target nexdyn) ;;
-  test|sanitize) targets=(--target nexdyn nexdyn_tests) ;;
+  test|sanitize) targets=(--target nexdyn nexdyn_tests) ;;  # nexdyn_tests needs the Python module
   *) targets=() ;;
 esac
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null

@@ -128,6 +128,24 @@ void CoordinateMap::follow(double* x) const {
   }, 1024);
 }
 
+void CoordinateMap::fit_nodes(double* x) const {
+  if (identity()) return;
+  for (const AffineBody& body : model_.affine_bodies) {
+    if (model_.dirichlet[body.node] >= 0) continue;  // a held body keeps its nodes
+    Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
+    Eigen::Matrix<double, 4, 3> right = Eigen::Matrix<double, 4, 3>::Zero();
+    for (int64_t v = body.follower_begin; v < body.follower_begin + body.follower_count; ++v) {
+      const Eigen::Vector4d w(1.0, model_.follower_rest[3 * v], model_.follower_rest[3 * v + 1],
+                              model_.follower_rest[3 * v + 2]);
+      normal += w * w.transpose();
+      right += w * Eigen::RowVector3d::Map(x + 3 * v);
+    }
+    const Eigen::Matrix<double, 4, 3> nodes = normal.ldlt().solve(right);
+    for (int k = 0; k < 4; ++k) Eigen::RowVector3d::Map(x + 3 * (int64_t{body.node} + k)) = nodes.row(k);
+  }
+  follow(x);
+}
+
 void CoordinateMap::fold_gradient(double* g) const {
   if (identity()) return;
   const int64_t num_bodies = static_cast<int64_t>(model_.affine_bodies.size());

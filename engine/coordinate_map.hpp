@@ -49,6 +49,10 @@ class CoordinateMap {
 
   // x (3 per vertex) at every follower from the nodes: positions, or a direction.
   void follow(double* x) const;
+  // The other way: each affine body's nodes (p, c_0, c_1, c_2 rows of x) set to the affine field
+  // closest to its followers' values in least squares, then the followers to that field: exact
+  // for a field the body can carry (a rigid or affine motion). Scripted velocities use it.
+  void fit_nodes(double* x) const;
   // g at the nodes += J^T g at the followers, whose entries are then zeroed (they are no
   // unknowns). Per body, in vertex order: the same bits on any number of threads.
   void fold_gradient(double* g) const;

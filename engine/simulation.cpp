@@ -313,7 +313,7 @@ void Simulation::set_velocities(const double* v) {
   for (int32_t i = 0; i < model_.num_vertices; ++i)
     if (model_.dirichlet[i] < 0)
       for (int d = 0; d < 3; ++d) state_.v[3 * int64_t{i} + d] = v[3 * int64_t{i} + d];
-  map_.follow(state_.v.data());
+  map_.fit_nodes(state_.v.data());
   if (sleeping_) sleeping_->wake_moving(state_);  // the next step's hold_sleeping lets them go
   history_.energy_before += motion_sums().kinetic - before;
 }

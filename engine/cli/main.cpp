@@ -8,6 +8,7 @@
 //   nexdyn render DIR [--frame N|--all] [--out PNGDIR] [--size WxH] [--camera EX,EY,EZ,TX,TY,TZ[,FOV]]
 //                 [--color body|speed] [--video OUT.mp4 [--fps F]] [--threads K]
 //   nexdyn plot DIR [--out PNGDIR] [--size WxH]   (PNG charts of a run's stats.csv and timings.csv)
+//   nexdyn sweep SCENE --set KEY=V1,V2,... --out DIR [...]   (the Python module's sweep, docs/python.md)
 // Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
 #include "engine/ccd_queries.hpp"
 #include "engine/mpm/mpm_simulation.hpp"
@@ -26,15 +27,18 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -98,7 +102,7 @@ struct CliArgs {
   bool quiet = false;
   double rho_inf = std::numeric_limits<double>::quiet_NaN();
   CLI::App *run = nullptr, *resume = nullptr, *check = nullptr, *ccd = nullptr, *render = nullptr,
-           *plot = nullptr, *mesh = nullptr;
+           *plot = nullptr, *mesh = nullptr, *sweep = nullptr;
   // nexdyn mesh
   std::string mesh_in, mesh_out;
   TetrahedralizeSettings tetrahedralize;
@@ -163,6 +167,31 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.render->add_option("--video", a.video, "With --all: also an .mp4 of the pictures (needs ffmpeg)");
   a.render->add_option("--fps", a.fps, "Frames per second of the video (default: from the frames' times)");
   a.render->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  a.sweep = app.add_subcommand("sweep", "Run the product of parameter lists on a Dask cluster (python3 -m nexdyn "
+                               "sweep --help; docs/python.md)");
+  a.sweep->prefix_command();  // every argument after it is the Python sweep's (--help too)
+  a.sweep->set_help_flag();
+}
+
+// `nexdyn sweep ...` is `python3 -m nexdyn sweep ...` with this build's Python module: the
+// process becomes that Python (its exit code is the sweep's).
+int run_sweep(const CliArgs& a) {
+#ifdef NEXDYN_PYTHON_DIR
+  std::string path = NEXDYN_PYTHON_DIR;
+  if (const char* old = std::getenv("PYTHONPATH"); old && *old) path += std::string(":") + old;
+  setenv("PYTHONPATH", path.c_str(), 1);
+  std::vector<std::string> args = {NEXDYN_PYTHON_EXECUTABLE, "-m", "nexdyn", "sweep"};
+  for (const std::string& arg : a.sweep->remaining()) args.push_back(arg);
+  std::vector<char*> argv;
+  for (std::string& arg : args) argv.push_back(arg.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  execv(argv[0], argv.data());
+  throw std::runtime_error(std::string("sweep: cannot start ") + NEXDYN_PYTHON_EXECUTABLE + ": " + std::strerror(errno));
+#else
+  (void)a;
+  throw std::runtime_error("sweep: this nexdyn was built without the Python module (NEXDYN_PYTHON=OFF)");
+#endif
 }
 
 int run_mesh(const CliArgs& a) {
@@ -331,6 +360,7 @@ int main(int argc, char** argv) {
     if (*a.render) return run_render(a);
     if (*a.mesh) return run_mesh(a);
     if (*a.plot) return run_plot(a);
+    if (*a.sweep) return run_sweep(a);
     std::filesystem::path out;
     const RunSummary summary = run_or_resume(a, out);
     return report(summary, out, a.quiet);

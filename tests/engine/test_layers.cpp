@@ -57,12 +57,13 @@ const std::vector<Layer> kLayers = {
     {"engine/energy_balance.", 7},
     // 8: files written from a simulation: frames, checkpoints
     {"engine/output/", 8},
-    // 9: the programs around them: the run loop, pictures, charts, CCD queries, the CLI
+    // 9: the programs around them: the run loop, pictures, charts, CCD queries, the CLI, Python
     {"engine/run", 9},
     {"engine/ccd_queries.", 9},
     {"engine/render/", 9},
     {"engine/plot/", 9},
     {"engine/cli/", 9},
+    {"engine/python/", 9},
 };
 
 int layer_of(const std::string& path) {

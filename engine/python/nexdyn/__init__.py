@@ -160,9 +160,10 @@ class Simulation:
     @property
     def positions(self):
         """(n, 3) float64 read-only view of the engine's positions [m], without a copy: an
-        array taken before a step shows the new values after it. Rows are the scene's
-        vertices in order; an affine body's four coordinate nodes (its centre of mass, then
-        the columns of A, as points) follow its surface vertices. Particle scenes: the particles."""
+        array taken before a step shows the new values after it. One row per vertex, the
+        scene's bodies in order; an affine body has four more rows after its vertices: its
+        centre of mass and its three axis nodes (the columns of A R, R its principal axes at
+        rest), which are coordinates, not points of the body. Particle scenes: the particles."""
         return self._core.positions()
 
     @property
