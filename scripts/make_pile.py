@@ -10,7 +10,8 @@ the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with fric
 
     python3 scripts/make_pile.py 1000                       # scenes/stress/pile_1000.json
     python3 scripts/make_pile.py 10000 --steps 20 --out /tmp/pile_10000.json
-    python3 scripts/make_pile.py 1000 --affine --integrator default --steps 300   # pile_1000_affine
+    python3 scripts/make_pile.py 1000 --affine --integrator default --steps 300 --friction-iterations 1
+                                                            # pile_1000_affine
     python3 scripts/make_pile.py 100 --affine --out /tmp/pile_100_affine.json
     python3 scripts/make_pile.py 100 --youngs 1e9 --out /tmp/pile_100_e1e9.json
 
@@ -20,7 +21,9 @@ the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with fric
 block of columns x layers x rows, unrotated, 0.05 m above the floor, so that the block lands as
 one (the hardest shape for contact counts). `--affine [KAPPA]` makes every body affine (material "stone", density 1000, orthogonality stiffness
 KAPPA Pa, or the engine's default); `--youngs` sets the rubber's Young's modulus; `--integrator`
-names the time integrator (`default`: leave the key out, the engine's default).
+names the time integrator (`default`: leave the key out, the engine's default);
+`--friction-iterations` sets `contact.friction_iterations` (1: friction lagged once a step, the
+IPC paper's code's own default; the engine's default is "converged").
 
 Mesh paths are written relative to the output file, so keep it in scenes/stress/ or pass --out
 inside scenes/; the meshes are scenes/meshes/torus.msh, cube.msh and pyramid.msh.
@@ -149,6 +152,8 @@ def main():
                         help="affine bodies, with this orthogonality stiffness [Pa] if given")
     parser.add_argument("--youngs", type=float, default=1e6, help="the rubber's Young's modulus [Pa]")
     parser.add_argument("--integrator", default="implicit_euler", help="time.integrator ('default': none)")
+    parser.add_argument("--friction-iterations", metavar="K",
+                        help="contact.friction_iterations (a count, or 'converged'; default: the engine's)")
     parser.add_argument("--block", type=float, metavar="GAP",
                         help="boxes packed GAP metres apart in one block instead of a pile")
     args = parser.parse_args()
@@ -168,6 +173,9 @@ def main():
         scene = block(args.count, args.steps, args.block, affine, stiffness, args.youngs, args.integrator)
     else:
         scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator)
+    if args.friction_iterations is not None:
+        k = args.friction_iterations
+        scene["contact"]["friction_iterations"] = k if k == "converged" else int(k)
     out.write_text(json.dumps(scene, indent=1) + "\n")
     print(f"{out}: {args.count} bodies")
 
