@@ -49,7 +49,15 @@ class PySimulation {
 
   // A run resumed from an output folder or a checkpoint file.
   PySimulation(const std::string& source, std::optional<int> threads) : threads_(thread_limit(threads)) {
-    runner_ = Runner::resume(source, false);
+    try {
+      runner_ = Runner::resume(source, false);
+    } catch (const SceneError&) {
+      throw;
+    } catch (const CheckpointError&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      throw CheckpointError(e.what());  // a changed scene or mesh: the run cannot be continued
+    }
   }
 
   // Steps n times; the GIL is released during each step, and a pending signal (Ctrl-C) raises

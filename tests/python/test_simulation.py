@@ -248,3 +248,14 @@ def test_a_kick_moves_an_affine_body_rigidly():
     mass = 7800 * 0.3 * 0.2 * 0.1
     row = sim.step()
     np.testing.assert_allclose([row["momentum_x"], row["momentum_y"], row["momentum_z"]], mass * u, rtol=1e-12)
+
+
+def test_resuming_a_run_whose_scene_changed_is_a_checkpoint_error(tmp_path):
+    scene_file = tmp_path / "drop.json"
+    scene_file.write_text(json.dumps(nexdyn.resolve_mesh_paths(cube_drop(), CUBE_DROP.parent)))
+    sim = nexdyn.Simulation(scene_file, out=tmp_path / "run", steps=20, checkpoint_every=5)
+    sim.step(12)
+    del sim
+    scene_file.write_text(scene_file.read_text() + " ")  # one byte more: another file
+    with pytest.raises(nexdyn.CheckpointError, match="changed since the run started"):
+        nexdyn.Simulation.resume(tmp_path / "run")
