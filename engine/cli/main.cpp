@@ -9,7 +9,9 @@
 //                 [--color body|speed] [--video OUT.mp4 [--fps F]] [--threads K]
 //   nexdyn plot DIR [--out PNGDIR] [--size WxH]   (PNG charts of a run's stats.csv and timings.csv)
 //   nexdyn sweep SCENE --set KEY=V1,V2,... --out DIR [...]   (the Python module's sweep, docs/python.md)
-// Exit code 0 on success; otherwise one clear line on stderr and a non-zero code.
+//   nexdyn --version
+// Exit code 0 on success, 1 for a failed step or bad input, 2 for a usage error, 130 / 143 for a
+// run stopped by SIGINT / SIGTERM; otherwise one clear line on stderr.
 #include "engine/ccd_queries.hpp"
 #include "engine/mpm/mpm_simulation.hpp"
 #include "engine/plot/stats_plot.hpp"
@@ -22,6 +24,7 @@
 #include "engine/scene/scene.hpp"
 #include "engine/scene/surface_body.hpp"
 #include "kernels/isa.hpp"
+#include "nexdyn_version.hpp"  // generated at build time (engine/cli/version.cmake)
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -43,6 +46,10 @@
 namespace {
 
 using namespace nexdyn;
+
+// Exit codes (README, "Exit codes"): 0 done, 1 a failed step or bad input, 2 a usage error,
+// 128 + the signal for a run stopped by SIGINT (130) or SIGTERM (143).
+constexpr int kExitUsage = 2;
 
 void print_tet_summary(const Scene& scene);
 
@@ -94,6 +101,36 @@ void print_tet_summary(const Scene& scene) {
 
 namespace {
 
+// Option checks that speak the engine's words: "--threads must be at least 1 (got 0)".
+CLI::Validator at_least(long long least) {
+  return CLI::Validator(
+      [least](std::string& text) -> std::string {
+        long long value = 0;
+        size_t used = 0;
+        try {
+          value = std::stoll(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size()) return "must be a whole number (got \"" + text + "\")";
+        if (value < least) return "must be at least " + std::to_string(least) + " (got " + text + ")";
+        return "";
+      },
+      "INT >= " + std::to_string(least));
+}
+
+CLI::Validator one_of(std::vector<std::string> names) {
+  std::string list;
+  for (size_t i = 0; i < names.size(); ++i) list += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+  return CLI::Validator(
+      [names, list](std::string& text) -> std::string {
+        for (const std::string& name : names)
+          if (text == name) return "";
+        return "must be " + list + " (got \"" + text + "\")";
+      },
+      list);
+}
+
 // Everything the command line sets.
 struct CliArgs {
   std::string scene_path, out_dir, integrator, energy_guard, resume_dir, check_path, ccd_path;
@@ -121,21 +158,21 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.run->add_option("scene", a.scene_path, "Scene JSON file")->required();
   a.run->add_option("--out", a.out_dir, "Output folder (default out/<scene name>)");
   a.run->add_option("--steps", a.steps, "Number of steps (default: the scene's time.steps)")
-      ->check(CLI::PositiveNumber);
-  a.run->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+      ->check(at_least(1));
+  a.run->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(at_least(1));
   a.run->add_option("--integrator", a.integrator, "Override the scene's integrator preset");
   a.run->add_option("--rho-inf", a.rho_inf, "Spectral radius at infinity of generalized_alpha (0 to 1)");
   a.run->add_option("--energy-guard", a.energy_guard, "on or off: retake with implicit Euler any step whose "
                     "integration would create energy (default: the scene's time.energy_guard, on)")
-      ->check(CLI::IsMember({"on", "off"}));
+      ->check(one_of({"on", "off"}));
   a.run->add_flag("--quiet", a.quiet, "No progress bar or summary");
   a.run->add_option("--checkpoint-every", a.checkpoint_every,
                     "Steps between checkpoints (default: the scene's output.checkpoint_every, 100; 0: only "
                     "on SIGINT/SIGTERM)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(at_least(0));
   a.resume = app.add_subcommand("resume", "Continue a stopped run from its newest valid checkpoint");
   a.resume->add_option("dir", a.resume_dir, "The run's output folder")->required();
-  a.resume->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  a.resume->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(at_least(1));
   a.resume->add_flag("--quiet", a.quiet, "No progress bar or summary");
   a.check = app.add_subcommand("check", "Validate a scene and print its size");
   a.check->add_option("scene", a.check_path, "Scene JSON file")->required();
@@ -156,17 +193,17 @@ void define_cli(CLI::App& app, CliArgs& a) {
   a.render = app.add_subcommand("render", "Ray-trace PNG pictures of a run's frames (and a video with ffmpeg)");
   a.render->add_option("dir", a.render_dir, "The run's output folder")->required();
   a.render->add_option("--frame", a.render_frame, "Frame number N of frames/frame_N.vtu (default: the last)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(at_least(0));
   a.render->add_flag("--all", a.render_all, "Every frame, in parallel");
   a.render->add_option("--out", a.render_out, "Folder of the pictures (default DIR/render)");
   a.render->add_option("--size", a.render_size, "Picture size WxH in pixels (default 1280x720)");
   a.render->add_option("--camera", a.render_camera, "EX,EY,EZ,TX,TY,TZ[,FOV]: eye, target, vertical field of view "
                        "[deg] (default: the scene's output.camera, else fitted to the bodies)");
   a.render->add_option("--color", a.render_color, "Colour bodies by \"body\" or by \"speed\" (default body)")
-      ->check(CLI::IsMember({"body", "speed"}));
+      ->check(one_of({"body", "speed"}));
   a.render->add_option("--video", a.video, "With --all: also an .mp4 of the pictures (needs ffmpeg)");
   a.render->add_option("--fps", a.fps, "Frames per second of the video (default: from the frames' times)");
-  a.render->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  a.render->add_option("--threads", a.threads, "Worker threads (default: all cores)")->check(at_least(1));
   a.sweep = app.add_subcommand("sweep", "Run the product of parameter lists on a Dask cluster (python3 -m nexdyn "
                                "sweep --help; docs/python.md)");
   a.sweep->prefix_command();  // every argument after it is the Python sweep's (--help too)
@@ -295,14 +332,14 @@ RunSummary run_or_resume(const CliArgs& a, std::filesystem::path& out) {
   return run_scene(scene, options);
 }
 
-// The exit code and the last lines of a run: 0 done, 2 a failed step, 128 + signal interrupted.
+// The exit code and the last lines of a run: 0 done, 1 a failed step, 128 + signal interrupted.
 int report(const RunSummary& summary, const std::filesystem::path& out, bool quiet) {
   const std::string partial = (out / "stats.partial.csv").string();
   if (!summary.ok) {
     std::fprintf(stderr, "nexdyn: error: %s (rows of the %lld completed steps are in %s; the last good "
                  "state is in %s)\n", summary.message.c_str(), static_cast<long long>(summary.steps_done),
                  partial.c_str(), summary.checkpoint.c_str());
-    return 2;
+    return 1;
   }
   if (summary.interrupted) {
     std::fprintf(stderr, "nexdyn: interrupted by %s after step %lld; checkpoint %s; continue with: nexdyn "
@@ -341,13 +378,42 @@ void report_split_loops_at_exit() {
 
 int main(int argc, char** argv) {
   report_split_loops_at_exit();
-  CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies"};
+  CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies", "nexdyn"};
   CliArgs a;
   define_cli(app, a);
+  app.set_version_flag("--version", std::string("nexdyn ") + NEXDYN_VERSION + " (commit " + NEXDYN_COMMIT + ")");
+  if (argc == 1) {  // no command: the list of them, as a usage error
+    std::printf("%s", app.help().c_str());
+    return kExitUsage;
+  }
+  if (argv[1][0] != '-') {  // a command the program does not have
+    std::string known;
+    bool found = false;
+    for (const CLI::App* command : app.get_subcommands({})) {
+      known += (known.empty() ? "" : ", ") + command->get_name();
+      found = found || command->get_name() == argv[1];
+    }
+    if (!found) {
+      std::fprintf(stderr, "nexdyn: error: unknown command \"%s\" (the commands: %s)\n", argv[1], known.c_str());
+      return kExitUsage;
+    }
+  }
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line: CLI11 says "--threads: must be ..."; the engine says "--threads must be ...".
+    std::string message = e.what();
+    if (const size_t colon = message.find(": "); message.rfind("--", 0) == 0 && colon != std::string::npos &&
+                                                 message.find(' ') > colon)
+      message.erase(colon, 1);
+    std::fprintf(stderr, "nexdyn: error: %s (nexdyn --help lists the commands and options)\n", message.c_str());
+    return kExitUsage;
   }
   try {
     std::unique_ptr<tbb::global_control> thread_limit;

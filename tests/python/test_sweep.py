@@ -361,11 +361,11 @@ def test_e_a_bad_key_or_value_is_refused_before_anything_is_submitted(tmp_path, 
     assert not (tmp_path / "out").exists()
 
 
-def test_e_the_cli_refuses_a_bad_key_with_one_line_and_exit_code_2(tmp_path, cube_drop_scene, build_dir):
+def test_e_the_cli_refuses_a_bad_key_with_one_line_and_exit_code_1_and_bad_usage_with_2(tmp_path, cube_drop_scene, build_dir):
     # The scheduler is not there: a sweep that tried to submit would say so instead.
     result = sweep_cli(build_dir, cube_drop_scene, "--set", "contact.friction=0.1,0.3", "--set", "contcat.dt=0.01",
                        "--out", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9", timeout=60)
-    assert result.returncode == 2 and result.stdout == ""
+    assert result.returncode == 1 and result.stdout == ""
     assert result.stderr.count("\n") == 1 and "'contcat.dt'" in result.stderr and "has no contcat" in result.stderr
     assert not (tmp_path / "out").exists()
     for arguments, message in [(["--set", "time.dt=[0.1"], "--set time.dt: unclosed bracket"),
@@ -376,7 +376,7 @@ def test_e_the_cli_refuses_a_bad_key_with_one_line_and_exit_code_2(tmp_path, cub
         result = sweep_cli(build_dir, cube_drop_scene, *arguments, "--out", tmp_path / "out", timeout=60)
         assert result.returncode == 2 and message in result.stderr, result.stderr
     result = sweep_cli(build_dir, tmp_path / "missing.json", "--set", "time.dt=1", "--out", tmp_path / "out", timeout=60)
-    assert result.returncode == 2 and "missing.json: cannot open the scene file" in result.stderr
+    assert result.returncode == 1 and "missing.json: cannot open the scene file" in result.stderr
     assert not (tmp_path / "out").exists()
 
 

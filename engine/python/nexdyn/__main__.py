@@ -1,9 +1,10 @@
 """`python3 -m nexdyn sweep SCENE --set KEY=V1,V2,... [--set ...] --out DIR [--scheduler ADDRESS]
 [--workers N] [--steps N]`: a parameter sweep on Dask (nexdyn.sweep; docs/python.md).
 
-Exit codes: 0 when every run is done, 1 when some failed, 2 when nothing was run because the
-command was wrong (usage, a bad key or value, a scene the engine refuses, a folder holding another
-sweep, a scheduler that cannot be reached), 130 on Ctrl-C (the same command resumes the sweep).
+Exit codes, as nexdyn's (README, "Exit codes"): 0 when every run is done; 1 when some failed, or
+when nothing was run because of bad input (a bad key or value, a scene the engine refuses, a
+folder holding another sweep, a scheduler that cannot be reached); 2 for a usage error (the
+command line itself); 130 on Ctrl-C (the same command resumes the sweep).
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ string (stvk). The runs are the product of the --set lists, the last varying fas
 
 Run k is DIR/runs/kkkk/ (its scene.json, then what `nexdyn run` writes); DIR/sweep.csv has a row
 per run. The same command again skips finished runs and resumes interrupted ones.
-exit codes: 0 every run done, 1 some failed, 2 nothing run (usage, key, scene or scheduler), 130 Ctrl-C"""
+exit codes: 0 every run done, 1 some failed or bad input (key, scene, folder or scheduler: nothing
+run), 2 usage, 130 Ctrl-C"""
 
 
 def _positive(text: str) -> int:
@@ -90,14 +92,14 @@ def main(argv: Optional[List[str]] = None) -> int:
         job = _Sweep(args.scene, params, args.out, args.steps, None, args.scheduler, args.workers)
     except (SceneError, ValueError) as e:
         print(f"nexdyn sweep: {e}", file=sys.stderr)
-        return 2
+        return 1
     where = args.scheduler or f"a local cluster of {args.workers or os.cpu_count() or 1} workers"
     print(f"nexdyn sweep: {len(job.plan)} runs of {args.scene} into {job.plan.out} on {where}", flush=True)
     try:
         rows = job.run(progress=_progress)
     except SchedulerError as e:
         print(f"nexdyn sweep: {e}", file=sys.stderr)
-        return 2
+        return 1
     except KeyboardInterrupt:
         print("\nnexdyn sweep: interrupted; the same command resumes the sweep", file=sys.stderr)
         return 130

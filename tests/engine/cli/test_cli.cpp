@@ -7,8 +7,16 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <regex>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 using namespace nexdyn;
 namespace fs = std::filesystem;
@@ -137,7 +145,7 @@ TEST_CASE("a Newton failure is reported with its step and reason and stats.csv i
     "bodies": [ { "box": { "size": [1, 0.1, 0.1], "cells": [10, 1, 1] }, "material": "m" } ],
     "boundary": [ { "box_min": [-0.51, -1, -1], "box_max": [-0.49, 1, 1], "fix": true } ] })");
   const auto r = test::run_cli("run " + scene.string() + " --quiet --out " + (dir / "out").string());
-  CHECK(r.exit_code == 2);
+  CHECK(r.exit_code == 1);
   CHECK(r.output.find("step 1 ") != std::string::npos);
   CHECK(r.output.find("max_iterations") != std::string::npos);
   CHECK_FALSE(fs::exists(dir / "out" / "stats.csv"));
@@ -197,4 +205,68 @@ TEST_CASE("nexdyn run writes timings.csv, a row per step split by phase") {
     CHECK(v.back() == test::relative(1e3 * wall + v[12], 1e-4));
   }
   CHECK(friction > 0.0);
+}
+
+namespace {
+
+// Runs nexdyn with `args`, stdout and stderr into files of their own; the exit code.
+struct SplitResult {
+  int exit_code = -1;
+  std::string out, err;
+};
+SplitResult run_split(const std::string& args) {
+  const fs::path dir = test::temp_dir("cli_split");
+  const int status = std::system((test::cli_path() + " " + args + " > " + (dir / "out").string() + " 2> " +
+                                  (dir / "err").string()).c_str());
+  auto read = [](const fs::path& p) {
+    std::ifstream in(p);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, read(dir / "out"), read(dir / "err")};
+}
+
+}  // namespace
+
+TEST_CASE("the CLI speaks like a tool: the commands without arguments, one-line option errors, --version, exit codes") {
+  // No arguments: the list of commands on stdout, and the usage exit code.
+  const SplitResult none = run_split("");
+  CHECK(none.exit_code == 2);
+  CHECK(none.err.empty());
+  for (const char* command : {"run", "resume", "check", "render", "plot", "mesh", "sweep"})
+    CHECK_MESSAGE(none.out.find(std::string("\n  ") + command + " ") != std::string::npos, command);
+
+  // Every option's range error is one line in the engine's words, and a usage error (2).
+  const std::string scene = test::scene_path("cube_drop.json").string();
+  const fs::path out = test::temp_dir("cli_usage") / "out";
+  const std::string run = "run " + scene + " --out " + out.string();
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {run + " --threads 0", "--threads must be at least 1 (got 0)"},
+      {"resume " + out.string() + " --threads -3", "--threads must be at least 1 (got -3)"},
+      {run + " --steps 0", "--steps must be at least 1 (got 0)"},
+      {run + " --steps ten", "--steps must be a whole number (got \"ten\")"},
+      {run + " --checkpoint-every -1", "--checkpoint-every must be at least 0 (got -1)"},
+      {run + " --energy-guard maybe", "--energy-guard must be on or off (got \"maybe\")"},
+      {"render " + out.string() + " --color red", "--color must be body or speed (got \"red\")"},
+  };
+  for (const auto& [args, message] : refused) {
+    const SplitResult r = run_split(args);
+    CHECK_MESSAGE(r.exit_code == 2, args);
+    CHECK_MESSAGE(r.err == "nexdyn: error: " + message + " (nexdyn --help lists the commands and options)\n", r.err);
+    CHECK(r.out.empty());
+  }
+  CHECK_FALSE(fs::exists(out));
+  const SplitResult unknown = run_split("frobnicate");
+  CHECK(unknown.exit_code == 2);
+  CHECK(unknown.err.find("frobnicate") != std::string::npos);
+  CHECK(std::count(unknown.err.begin(), unknown.err.end(), '\n') == 1);
+
+  // Bad input is 1: a scene that cannot be read.
+  const SplitResult missing = run_split("run " + (out.parent_path() / "nope.json").string());
+  CHECK(missing.exit_code == 1);
+
+  // --version: the version and the commit of the clone the program was built from.
+  const SplitResult version = run_split("--version");
+  CHECK(version.exit_code == 0);
+  CHECK_MESSAGE(std::regex_match(version.out, std::regex(R"(nexdyn \d+\.\d+\.\d+ \(commit ([0-9a-f]{7,}(-dirty)?|unknown)\)\n)")),
+                version.out);
 }

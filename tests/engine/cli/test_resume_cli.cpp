@@ -236,10 +236,10 @@ TEST_CASE("resume refuses a finished run, a folder without a run and a changed s
   test::write_text(scene, text);
   const fs::path out = dir / "failed";
   const auto failed = test::run_cli("run " + scene.string() + " --quiet --out " + out.string());
-  CHECK(failed.exit_code == 2);
+  CHECK(failed.exit_code == 1);
   CHECK(fs::exists(out / "checkpoints" / "checkpoint_000000000.ckpt"));
   const auto again_failed = test::run_cli("resume " + out.string() + " --quiet");
-  CHECK(again_failed.exit_code == 2);
+  CHECK(again_failed.exit_code == 1);
   CHECK(again_failed.output.find("step 1 (t = 0.1 s) failed [non_finite]") != std::string::npos);
   test::write_text(scene, text + "\n");
   const auto changed = test::run_cli("resume " + out.string());
