@@ -2,7 +2,6 @@
 errors, checkpoints and resumes, Ctrl-C, threads, docstrings and the stub (issue 41, point 1)."""
 
 import ast
-import csv
 import json
 import os
 import signal
@@ -22,20 +21,6 @@ CLI = BUILD / "nexdyn"
 CUBE_DROP = ROOT / "scenes" / "cube_drop.json"
 
 
-def cli_run(scene, out, steps):
-    subprocess.run([str(CLI), "run", str(scene), "--out", str(out), "--quiet", "--steps", str(steps)], check=True)
-
-
-def rows_without_wall_time(path):
-    """stats.csv's lines with the wall_seconds cells blanked (they differ from run to run)."""
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    wall = rows[0].index("wall_seconds")
-    for row in rows[1:]:
-        row[wall] = ""
-    return rows
-
-
 def cube_drop(**changes):
     scene = json.loads(CUBE_DROP.read_text())
     for key, value in changes.items():
@@ -43,16 +28,16 @@ def cube_drop(**changes):
     return scene
 
 
-def test_stepping_from_python_writes_the_cli_s_output_folder(tmp_path):
+def test_stepping_from_python_writes_the_cli_s_output_folder(tmp_path, cli_run, stats_without_wall_time):
     cli_run(CUBE_DROP, tmp_path / "cli", 30)
     sim = nexdyn.Simulation(CUBE_DROP, out=tmp_path / "py", steps=30)
     assert sim.total_steps == 30 and sim.stats is None
     for _ in range(30):
         row = sim.step()
     assert not (tmp_path / "py" / "stats.partial.csv").exists()
-    assert rows_without_wall_time(tmp_path / "py" / "stats.csv") == rows_without_wall_time(tmp_path / "cli" / "stats.csv")
+    assert stats_without_wall_time(tmp_path / "py" / "stats.csv") == stats_without_wall_time(tmp_path / "cli" / "stats.csv")
     # The returned row is stats.csv's last row, by column name, with the CLI's values.
-    header, *rows = rows_without_wall_time(tmp_path / "cli" / "stats.csv")
+    header, *rows = stats_without_wall_time(tmp_path / "cli" / "stats.csv")
     assert list(row) == header
     for name, text in zip(header, rows[-1]):
         if name != "wall_seconds":
@@ -108,7 +93,7 @@ def test_a_kick_sets_the_momentum_and_is_checked():
         sim.set_velocities(bad)
 
 
-def test_a_dict_scene_finds_its_meshes_against_base_dir(tmp_path):
+def test_a_dict_scene_finds_its_meshes_against_base_dir(tmp_path, cli_run, stats_without_wall_time):
     scene = json.loads((ROOT / "scenes" / "mixed_drop.json").read_text())
     assert any("mesh" in body for body in scene["bodies"])
     with pytest.raises(nexdyn.SceneError):
@@ -119,7 +104,7 @@ def test_a_dict_scene_finds_its_meshes_against_base_dir(tmp_path):
     meshes = [body["mesh"] for body in written["bodies"] if "mesh" in body]
     assert meshes and all(os.path.isabs(m) and os.path.exists(m) for m in meshes)
     cli_run(tmp_path / "run" / "scene.json", tmp_path / "cli", 2)
-    assert rows_without_wall_time(tmp_path / "run" / "stats.csv") == rows_without_wall_time(tmp_path / "cli" / "stats.csv")
+    assert stats_without_wall_time(tmp_path / "run" / "stats.csv") == stats_without_wall_time(tmp_path / "cli" / "stats.csv")
 
 
 def test_errors_are_python_exceptions_with_the_cli_s_message(tmp_path):
@@ -167,7 +152,7 @@ def test_a_checkpoint_file_resumes_bit_for_bit(tmp_path):
         sim.checkpoint()
 
 
-def test_an_output_folder_resumes_as_the_cli_s_run(tmp_path):
+def test_an_output_folder_resumes_as_the_cli_s_run(tmp_path, cli_run, stats_without_wall_time):
     cli_run(CUBE_DROP, tmp_path / "cli", 40)
     sim = nexdyn.Simulation(CUBE_DROP, out=tmp_path / "py", steps=40, checkpoint_every=0)
     sim.step(17)
@@ -177,7 +162,7 @@ def test_an_output_folder_resumes_as_the_cli_s_run(tmp_path):
     resumed = nexdyn.Simulation.resume(tmp_path / "py")
     assert resumed.step_index == 17 and resumed.total_steps == 40
     resumed.step(23)
-    assert rows_without_wall_time(tmp_path / "py" / "stats.csv") == rows_without_wall_time(tmp_path / "cli" / "stats.csv")
+    assert stats_without_wall_time(tmp_path / "py" / "stats.csv") == stats_without_wall_time(tmp_path / "cli" / "stats.csv")
     assert not (tmp_path / "py" / "checkpoints").exists() or not list((tmp_path / "py" / "checkpoints").iterdir())
 
 
