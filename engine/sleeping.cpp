@@ -57,17 +57,22 @@ void SleepingBodies::wake(int32_t body, const State& state) {
 }
 
 void SleepingBodies::wake_moving(const State& state) {
-  std::vector<int32_t>& group = history_.sleep_group;
+  const std::vector<int32_t>& group = history_.sleep_group;
   std::vector<int32_t> woken;
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     const int32_t g = group[model_.vertex_body[v]];
     const double* velocity = &state.v[3 * int64_t{v}];
     if (g >= 0 && (velocity[0] != 0.0 || velocity[1] != 0.0 || velocity[2] != 0.0)) woken.push_back(g);
   }
-  if (woken.empty()) return;
-  std::sort(woken.begin(), woken.end());
+  wake_groups(woken, state);
+}
+
+void SleepingBodies::wake_groups(std::vector<int32_t>& groups, const State& state) {
+  if (groups.empty()) return;
+  std::sort(groups.begin(), groups.end());
+  const std::vector<int32_t>& group = history_.sleep_group;
   for (int32_t b = 0; b < static_cast<int32_t>(kind_.size()); ++b)
-    if (group[b] >= 0 && std::binary_search(woken.begin(), woken.end(), group[b])) wake(b, state);
+    if (group[b] >= 0 && std::binary_search(groups.begin(), groups.end(), group[b])) wake(b, state);
 }
 
 void SleepingBodies::wake_near_motion(const State& state, double dt) {
@@ -105,11 +110,8 @@ void SleepingBodies::wake_near_motion(const State& state, double dt) {
     const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
     reach({ea[0], ea[1], eb[0], eb[1]});
   }
-  if (woken.empty()) return;
-  std::sort(woken.begin(), woken.end());
   // A woken body does not move yet (v = 0), so it wakes no one else this step.
-  for (int32_t b = 0; b < static_cast<int32_t>(kind_.size()); ++b)
-    if (group[b] >= 0 && std::binary_search(woken.begin(), woken.end(), group[b])) wake(b, state);
+  wake_groups(woken, state);
 }
 
 void SleepingBodies::update(State& state, const ContactCandidates& candidates, double dt) {

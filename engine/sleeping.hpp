@@ -69,6 +69,8 @@ class SleepingBodies {
  private:
   enum class Kind : uint8_t { free, driven, fixed };  // may sleep; never sleeps; links nothing
   void wake(int32_t body, const State& state);
+  // Wakes every body of the sleeping groups in `groups` (sorted here; repeats allowed).
+  void wake_groups(std::vector<int32_t>& groups, const State& state);
   // The body's drift is measured from its positions in `state` from now on.
   void set_anchor(int32_t body, const State& state);
   void restart_rest(int32_t body, const State& state);

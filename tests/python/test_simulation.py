@@ -244,3 +244,21 @@ def test_resuming_a_run_whose_scene_changed_is_a_checkpoint_error(tmp_path):
     scene_file.write_text(scene_file.read_text() + " ")  # one byte more: another file
     with pytest.raises(nexdyn.CheckpointError, match="changed since the run started"):
         nexdyn.Simulation.resume(tmp_path / "run")
+
+
+def test_a_kick_wakes_a_sleeping_body():
+    scene = cube_drop()
+    scene["time"]["integrator"] = "implicit_euler"  # lands and comes to rest within a second
+    sim = nexdyn.Simulation(scene, base_dir=CUBE_DROP.parent)
+    for _ in range(300):
+        if sim.step()["sleeping_bodies"] == 1:
+            break
+    assert sim.stats["sleeping_bodies"] == 1
+    height = sim.positions[:, 1].mean()
+    kick = np.zeros(sim.velocities.shape)
+    kick[:, 1] = 1.0
+    sim.set_velocities(kick)
+    row = sim.step()
+    # Awake and solved again: it rose (a sleeping body's vertices are held where they are).
+    assert row["sleeping_bodies"] == 0
+    assert sim.positions[:, 1].mean() - height > 0.005
