@@ -8,7 +8,9 @@
 #include "engine/render/view_file.hpp"
 #include "engine/run_record.hpp"
 #include "engine/run_signals.hpp"
+#include "engine/stop_request.hpp"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -143,7 +145,12 @@ std::string profile_line(const RunSummary& summary) {
                 summary.output_seconds * per_step_ms, double(summary.newton_iterations) / double(steps_run(summary)));
   std::string tail = buf;
   std::snprintf(buf, sizeof buf, "; peak Cholesky factors %.3g MB", summary.peak_factor_bytes / (1024.0 * 1024.0));
-  return head + line + tail + buf;
+  tail += buf;
+  if (rusage usage{}; getrusage(RUSAGE_SELF, &usage) == 0) {  // ru_maxrss: kilobytes on Linux
+    std::snprintf(buf, sizeof buf, "; peak memory %.4g MB", double(usage.ru_maxrss) / 1024.0);
+    tail += buf;
+  }
+  return head + line + tail;
 }
 
 std::string timings_header() {
@@ -276,7 +283,17 @@ class RunnerOf final : public Runner {
     if (finished()) throw std::logic_error("Runner::step past the run's last step");
     const int64_t step = record_.steps_done + 1;
     hook_.at(step, SignalHook::Place::begin);
+    hook_.arm(step);
+    const auto step_start = std::chrono::steady_clock::now();
     const StepOutcome outcome = simulation_->step();
+    hook_.disarm(step);
+    if (outcome.status == StepStatus::stopped) {  // the state is still that of the step before
+      summary_.interrupted = true;
+      summary_.signal = stop_requested();
+      // The abandoned work is in the profile's phases: in the steps' time too, so that they add up.
+      summary_.step_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
+      return outcome;
+    }
     if (outcome.status != StepStatus::ok) {
       summary_.ok = false;
       char buf[128];
@@ -521,14 +538,16 @@ std::unique_ptr<Runner> Runner::resume(const fs::path& source, bool progress) {
 
 namespace {
 
-// Steps a runner to its end, or until a step fails, or until SIGINT or SIGTERM (then after the
-// step under way, with a checkpoint of it).
+// Steps a runner to its end, or until a step fails, or until SIGINT or SIGTERM (which abandon the
+// step under way at its next safe point, or come between two steps): then with a checkpoint of
+// the last finished step.
 RunSummary run_to_end(Runner& runner) {
   StopSignals signals;
   int stopped_by = 0;
   while (!runner.finished()) {
-    if (runner.step().status != StepStatus::ok) break;
-    if (signals.received() != 0 && !runner.finished()) {
+    const StepStatus status = runner.step().status;
+    if (status != StepStatus::ok && status != StepStatus::stopped) break;
+    if (signals.received() != 0 && (status == StepStatus::stopped || !runner.finished())) {
       stopped_by = signals.received();
       runner.checkpoint();
       break;

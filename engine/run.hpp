@@ -7,7 +7,8 @@
 // place whole, so every file that exists is complete.
 //
 // Checkpoints (engine/output/checkpoint_file.hpp) go to DIR/checkpoints/checkpoint_NNNNNNNNN.ckpt
-// every output.checkpoint_every steps, on SIGINT and SIGTERM (after the step under way; a second
+// every output.checkpoint_every steps, on SIGINT and SIGTERM (the step under way is abandoned at
+// its next safe point, engine/stop_request.hpp, and the last finished step is written; a second
 // signal ends the process at once), and when a step fails (the last good state). The newest two
 // are kept; a run that finishes removes them. Each holds the Simulation (State and solver
 // history), how far stats.partial.csv and timings.partial.csv had got, the frames listed in
@@ -32,9 +33,11 @@
 namespace nexdyn {
 
 // A test hook: with NEXDYN_TEST_SIGNAL=SIGNAL@STEP[:PLACE] in the environment (SIGNAL one of KILL,
-// TERM, INT; PLACE one of begin (the default), row, checkpoint) a run sends itself that signal at
-// step STEP: as the step begins, just after its stats row is written (before its frame and
-// timings row), or just after its checkpoint file is in place (before older ones are removed).
+// TERM, INT; PLACE one of begin (the default), row, checkpoint, newton, newtonN) a run sends itself
+// that signal at step STEP: as the step begins, just after its stats row is written (before its
+// frame and timings row), just after its checkpoint file is in place (before older ones are
+// removed), or inside the step as its Nth Newton iteration begins (newton: the first; counted
+// over all the step's solves and retried attempts).
 // Signal and kill-and-resume tests use it to stop a run at a known point on any machine; the run
 // says on stderr that the hook is set. A malformed value is an error naming the variable.
 inline constexpr const char* kTestSignalVariable = "NEXDYN_TEST_SIGNAL";
@@ -128,7 +131,8 @@ class Runner {
 
   // The next step, then its stats and timings rows, its frame and its periodic checkpoint. A failed
   // step leaves the state before it, writes a checkpoint of that (with an output folder) and sets
-  // summary().ok to false with the reason in summary().message.
+  // summary().ok to false with the reason in summary().message. A step stopped by a request
+  // (StepStatus::stopped) leaves the state before it and writes nothing: the caller decides.
   virtual StepOutcome step() = 0;
   bool finished() const { return record_.steps_done >= record_.total_steps; }
   // A checkpoint of the last step: into the output folder's checkpoints/ when `file` is empty
@@ -162,7 +166,7 @@ class Runner {
 };
 
 // A fresh run into options.out_dir, to its end (or a failed step, or SIGINT / SIGTERM: then
-// after the step under way, with a checkpoint of it).
+// with a checkpoint of the last finished step, the step under way abandoned).
 RunSummary run_scene(const Scene& scene, const RunOptions& options);
 
 // Continues the run in `out_dir` from its newest valid checkpoint (a checkpoint that fails its

@@ -103,7 +103,7 @@ void remove_checkpoints(const fs::path& out) {
 }
 
 fs::path write_checkpoint(const fs::path& out, const RunRecord& record, const std::string& snapshot,
-                          const SignalHook& hook) {
+                          SignalHook& hook) {
   CheckpointWriter payload;
   put_record(payload, record);
   std::string bytes = payload.bytes();

@@ -49,6 +49,6 @@ void remove_checkpoints(const std::filesystem::path& out);
 // Writes a checkpoint of `snapshot` (a simulation saved after record.steps_done) and keeps the
 // newest two; returns its path. The hook may stop the process once the file is in place.
 std::filesystem::path write_checkpoint(const std::filesystem::path& out, const RunRecord& record,
-                                       const std::string& snapshot, const SignalHook& hook);
+                                       const std::string& snapshot, SignalHook& hook);
 
 }  // namespace nexdyn

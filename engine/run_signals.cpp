@@ -2,6 +2,7 @@
 #include "engine/run_signals.hpp"
 
 #include "engine/run.hpp"
+#include "engine/stop_request.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -12,28 +13,37 @@ namespace nexdyn {
 
 namespace {
 
-// SIGINT / SIGTERM: the run stops after the step under way, with a checkpoint.
-volatile std::sig_atomic_t g_stop_signal = 0;
-
+// SIGINT / SIGTERM: the step under way stops at its next safe point, and the run with a checkpoint.
 extern "C" void on_stop_signal(int signal) {
-  g_stop_signal = signal;
+  request_stop(signal);
   std::signal(signal, SIG_DFL);
 }
 
 }  // namespace
 
-StopSignals::StopSignals() {
-  g_stop_signal = 0;
+StopSignals::StopSignals(bool interrupt_only) : interrupt_only_(interrupt_only) {
+  clear_stop_request();
   previous_int_ = std::signal(SIGINT, on_stop_signal);
-  previous_term_ = std::signal(SIGTERM, on_stop_signal);
+  if (!interrupt_only_) previous_term_ = std::signal(SIGTERM, on_stop_signal);
 }
 
 StopSignals::~StopSignals() {
   std::signal(SIGINT, previous_int_);
-  std::signal(SIGTERM, previous_term_);
+  if (!interrupt_only_) std::signal(SIGTERM, previous_term_);
 }
 
-int StopSignals::received() const { return g_stop_signal; }
+int StopSignals::received() const { return stop_requested(); }
+
+void SignalHook::arm(int64_t now) const {
+  if (signal != 0 && now == step && place == Place::newton)
+    raise_at_safe_point(SafePoint::newton_iteration, newton_iteration, signal);
+}
+
+void SignalHook::disarm(int64_t now) {
+  if (signal == 0 || place != Place::newton || now != step) return;
+  raise_at_safe_point(SafePoint::newton_iteration, 0, 0);
+  signal = 0;
+}
 
 SignalHook signal_hook_from_environment() {
   SignalHook hook;
@@ -42,7 +52,8 @@ SignalHook signal_hook_from_environment() {
   const std::string value = text;
   auto fail = [&] {
     throw std::runtime_error(std::string(kTestSignalVariable) + ": expected SIGNAL@STEP[:PLACE] with SIGNAL one of "
-                             "KILL, TERM, INT, STEP >= 1 and PLACE one of begin, row, checkpoint; got \"" + value + "\"");
+                             "KILL, TERM, INT, STEP >= 1 and PLACE one of begin, row, checkpoint, newton, newtonN "
+                             "(N >= 1); got \"" + value + "\"");
   };
   const size_t at = value.find('@');
   if (at == std::string::npos) fail();
@@ -60,7 +71,16 @@ SignalHook signal_hook_from_environment() {
   if (place == "begin") hook.place = SignalHook::Place::begin;
   else if (place == "row") hook.place = SignalHook::Place::row;
   else if (place == "checkpoint") hook.place = SignalHook::Place::checkpoint;
-  else fail();
+  else if (place.rfind("newton", 0) == 0) {
+    hook.place = SignalHook::Place::newton;
+    const std::string n = place.substr(6);
+    if (!n.empty()) {
+      if (n.find_first_not_of("0123456789") != std::string::npos || n.size() > 9 || std::stoll(n) < 1) fail();
+      hook.newton_iteration = std::stoll(n);
+    }
+  } else {
+    fail();
+  }
   std::fprintf(stderr, "nexdyn: %s=%s: this run will send itself SIG%s at step %lld (%s)\n", kTestSignalVariable,
                value.c_str(), name.c_str(), static_cast<long long>(hook.step), place.c_str());
   return hook;

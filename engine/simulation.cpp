@@ -119,9 +119,20 @@ StepOutcome Simulation::step() {
   balance_ = {};
   stats_.guarded_steps = 0;
   energy_now_ = history_.energy_before;
-  if (sleeping_) sleeping_->wake_near_motion(state_, scene_.time.dt);
-  StepOutcome outcome =
-      advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
+  // The groups woken for this step sleep again if the step is stopped: a run resumed from its
+  // start must wake them itself, as the run never stopped did.
+  std::optional<StepHistory> before_waking;
+  if (sleeping_) {
+    before_waking = history_;
+    sleeping_->wake_near_motion(state_, scene_.time.dt);
+  }
+  StepOutcome outcome;
+  try {
+    outcome = advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
+  } catch (const StepStopped& stop) {
+    if (before_waking) history_ = std::move(*before_waking);
+    return stopped_outcome(stop);
+  }
   stats_.retries = retries.retries;
   stats_.retried_because = std::move(retries.first_failure);
   if (outcome.status != StepStatus::ok) return outcome;
@@ -169,7 +180,12 @@ StepOutcome Simulation::attempt(double /*t_start*/, double t_end, double dt, int
     // The integration would have created energy: the same interval again with implicit Euler.
     go_back(before);
     force_euler_ = true;
-    outcome = attempt(dt, t_end, level, step_iterations_);
+    try {
+      outcome = attempt(dt, t_end, level, step_iterations_);
+    } catch (const StepStopped&) {
+      force_euler_ = false;
+      throw;
+    }
     force_euler_ = false;
     if (outcome.status == StepStatus::ok) {
       ++stats_.guarded_steps;

@@ -13,9 +13,11 @@
 
 namespace nexdyn {
 
-// How a step ended. The solvers never throw: every failure on their path, the linear solver's
-// included, comes back as one of these with a sentence saying why, and the driver decides (a
-// failed attempt is put back and retried as two halves, step_retry.hpp).
+// How a step ended. The solvers never throw for a failure: every failure on their path, the linear
+// solver's included, comes back as one of these with a sentence saying why, and the driver decides
+// (a failed attempt is put back and retried as two halves, step_retry.hpp). The one exception that
+// crosses them is StepStopped (stop_request.hpp), a request to abandon the step, which the step's
+// driver turns into `stopped`.
 enum class StepStatus {
   ok,
   max_iterations,         // Newton increment still above the tolerance
@@ -25,6 +27,8 @@ enum class StepStatus {
   boundary_collision,     // a moving boundary or obstacle cannot reach its prescribed position
   linear_solver_failed,   // CHOLMOD could not analyse, factorise or solve whatever the values:
                           // out of memory, a matrix too large for its indices, invalid input
+  stopped,                // abandoned at a safe point on request (SIGINT, SIGTERM): the state is
+                          // the step's start, as if it had not been attempted
 };
 
 inline std::string_view step_status_name(StepStatus s) {
@@ -36,6 +40,7 @@ inline std::string_view step_status_name(StepStatus s) {
     case StepStatus::non_finite: return "non_finite";
     case StepStatus::boundary_collision: return "boundary_collision";
     case StepStatus::linear_solver_failed: return "linear_solver_failed";
+    case StepStatus::stopped: return "stopped";
   }
   return "?";
 }

@@ -17,6 +17,8 @@
 // - When even the smallest attempt fails, its message ends with where the halving stopped:
 //   " (after N halvings of dt, the last try a step of H s from t = T s)".
 // - An outcome with retry_may_help false (particles left the MPM grid) is not split.
+// - A stop request (StepStopped, engine/stop_request.hpp) thrown by an attempt puts every level
+//   back as it found the simulation and goes on up: the caller catches it at the step's start.
 //
 // A Stepper provides:
 //   Snapshot snapshot() const;             everything a failed attempt must put back: the state,
@@ -30,17 +32,30 @@
 #pragma once
 
 #include "engine/step_result.hpp"
+#include "engine/stop_request.hpp"
 
 #include <cstdio>
 #include <string>
 
 namespace nexdyn {
 
+// What a step stopped by a request (StepStopped) returns, once advance_or_split has put the
+// simulation back to the step's start: never retried.
+inline StepOutcome stopped_outcome(const StepStopped& stop) {
+  return {StepStatus::stopped, "stopped by signal " + std::to_string(stop.signal) + " before the step finished", false};
+}
+
 template <typename Stepper>
 StepOutcome advance_or_split(Stepper& stepper, double t_start, double t_end, double dt, int level,
                              int max_halvings, RetryLog& log) {
   const auto before = stepper.snapshot();
-  StepOutcome outcome = stepper.attempt(t_start, t_end, dt, level, before);
+  StepOutcome outcome;
+  try {
+    outcome = stepper.attempt(t_start, t_end, dt, level, before);
+  } catch (const StepStopped&) {
+    stepper.go_back(before);
+    throw;
+  }
   if (outcome.ok()) {
     stepper.set_time(t_end);
     return outcome;
@@ -63,8 +78,13 @@ StepOutcome advance_or_split(Stepper& stepper, double t_start, double t_end, dou
   }
   const double t_mid = t_start + 0.5 * (t_end - t_start);
   const double half = 0.5 * dt;
-  outcome = advance_or_split(stepper, t_start, t_mid, half, level + 1, max_halvings, log);
-  if (outcome.ok()) outcome = advance_or_split(stepper, t_mid, t_end, half, level + 1, max_halvings, log);
+  try {
+    outcome = advance_or_split(stepper, t_start, t_mid, half, level + 1, max_halvings, log);
+    if (outcome.ok()) outcome = advance_or_split(stepper, t_mid, t_end, half, level + 1, max_halvings, log);
+  } catch (const StepStopped&) {
+    stepper.go_back(before);  // the first half may have finished
+    throw;
+  }
   if (!outcome.ok()) stepper.go_back(before);
   return outcome;
 }

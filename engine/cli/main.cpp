@@ -342,6 +342,11 @@ int report(const RunSummary& summary, const std::filesystem::path& out, bool qui
     return 1;
   }
   if (summary.interrupted) {
+    if (!quiet) {
+      std::printf("stopped: %lld steps in %.3f s, output in %s\n", static_cast<long long>(steps_run(summary)),
+                  summary.wall_seconds, out.string().c_str());
+      if (steps_run(summary) > 0) std::printf("%s\n", profile_line(summary).c_str());
+    }
     std::fprintf(stderr, "nexdyn: interrupted by %s after step %lld; checkpoint %s; continue with: nexdyn "
                  "resume %s\n", summary.signal == SIGINT ? "SIGINT" : "SIGTERM",
                  static_cast<long long>(summary.steps_done), summary.checkpoint.c_str(), out.string().c_str());

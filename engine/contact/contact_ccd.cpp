@@ -5,6 +5,7 @@
 
 #include "engine/contact/pair_geometry.hpp"
 #include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
 #include "kernels/ccd/ccd.hpp"
 
 #include <algorithm>
@@ -112,6 +113,7 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
     run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
     parallel_for(chunks, [&](int64_t cb, int64_t ce) {
       for (int64_t k = cb; k < ce; ++k) {
+        stop_point();
         std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
         runs.clear();
         for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {

@@ -34,8 +34,12 @@ StepOutcome MpmSimulation::step() {
   step_iterations_ = 0;
   boundary_nodes_ = 0;
   const double t_next = state_.time + scene_.time.dt;
-  const StepOutcome outcome =
-      advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
+  StepOutcome outcome;
+  try {
+    outcome = advance_or_split(*this, state_.time, t_next, scene_.time.dt, 0, scene_.solver.substep_halvings, retries);
+  } catch (const StepStopped& stop) {
+    return stopped_outcome(stop);
+  }
   if (!outcome.ok()) return outcome;
   ++state_.step;
   stats_ = StepStats{};

@@ -3,6 +3,7 @@
 
 #include "engine/mpm/grid_elasticity.hpp"
 #include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
 #include "kernels/elasticity/elasticity.hpp"
 
 #include <Eigen/Geometry>
@@ -223,6 +224,7 @@ bool MpmStepper::newton(const Particles& particles, double dt, double s, const M
   }
   const double step_tolerance = settings.tolerance * dt;
   for (int it = 1; it <= settings.max_iterations; ++it) {
+    stop_point(SafePoint::newton_iteration);
     result.newton_iterations = it;
     {
       ProfileScope scope(profile, StepPhase::elastic);

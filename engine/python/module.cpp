@@ -60,8 +60,10 @@ class PySimulation {
     }
   }
 
-  // Steps n times; the GIL is released during each step, and a pending signal (Ctrl-C) raises
-  // its exception between two steps. Returns the last step's stats row.
+  // Steps n times; the GIL is released during each step. Ctrl-C abandons the step under way at its
+  // next safe point (engine/stop_request.hpp; on the main thread, where Python takes its signals)
+  // and raises KeyboardInterrupt with the state of the last finished step; a signal that came
+  // between two steps raises its exception there. Returns the last step's stats row.
   py::dict step(int64_t n) {
     if (n < 1) throw py::value_error("step(n): n must be at least 1, got " + std::to_string(n));
     check_open();
@@ -69,12 +71,24 @@ class PySimulation {
       throw py::value_error("step(" + std::to_string(n) + "): the run in " + runner_->out_dir().string() + " has " +
                             std::to_string(runner_->total_steps() - runner_->steps_done()) + " of its " +
                             std::to_string(runner_->total_steps()) + " steps left");
+    const py::module_ threading = py::module_::import("threading");
+    const bool main_thread = threading.attr("current_thread")().is(threading.attr("main_thread")());
     for (int64_t k = 0; k < n; ++k) {
       StepOutcome outcome;
+      bool interrupted = false;  // Ctrl-C during the step, which it abandoned or (no safe point left) finished
       {
-        py::gil_scoped_release release;
-        outcome = runner_->step();
-        if (outcome.ok() && runner_->has_output() && runner_->finished()) runner_->close();
+        std::optional<StopSignals> interrupt;
+        if (main_thread) interrupt.emplace(/*interrupt_only=*/true);
+        {
+          py::gil_scoped_release release;
+          outcome = runner_->step();
+          if (outcome.ok() && runner_->has_output() && runner_->finished()) runner_->close();
+        }
+        interrupted = interrupt && interrupt->received() != 0;
+      }
+      if (outcome.status == StepStatus::stopped || (interrupted && outcome.ok())) {
+        PyErr_SetNone(PyExc_KeyboardInterrupt);
+        throw py::error_already_set();
       }
       if (!outcome.ok()) {
         const std::string message = runner_->summary().message;

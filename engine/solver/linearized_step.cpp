@@ -1,6 +1,7 @@
 #include "engine/solver/linearized_step.hpp"
 
 #include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -131,6 +132,7 @@ LinearizedResult LinearizedStep::solve_pcg(const StepContext& ctx, const Damping
   const double target = kCgToleranceRatio * tolerance_ * ctx.dt;
   LinearizedResult result;
   for (int it = 0;; ++it) {
+    if (it % 64 == 0) stop_point();
     result.residual = max_abs(z_) / ctx.dt;
     if (max_abs(z_) <= target) {
       result.cg_iterations = it;

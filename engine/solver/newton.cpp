@@ -2,6 +2,7 @@
 #include "engine/solver/newton.hpp"
 
 #include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/LU>
@@ -223,7 +224,10 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   };
   {
     ProfileScope scope(profile_, StepPhase::factorization);
-    run([&](int64_t a) { active_status_[a] = active_system_[a]->factorize(values_.data()); });
+    run([&](int64_t a) {
+      stop_point();  // a big island's factorisation can take seconds: a safe point before each
+      active_status_[a] = active_system_[a]->factorize(values_.data());
+    });
   }
   for (int64_t a = 0; a < count; ++a)
     if (active_status_[a] != StepStatus::ok) return a;
@@ -480,6 +484,7 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
   group_done_.assign(num_groups, 0);
   int32_t pending = num_groups;
   while (pending > 0) {
+    stop_point();
     parallel_for(n, [&](int64_t begin, int64_t end) {
       for (int64_t i = begin; i < end; ++i) {
         const int32_t g = group_of_vertex_[i / 3];
@@ -524,6 +529,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
   }
   int relags = 0;
   for (int it = 0; it < settings.max_iterations; ++it) {
+    stop_point(SafePoint::newton_iteration);
     if (!solve_direction(x.data(), it, result)) return result;
     result.iterations = it + 1;
     const bool any_moving = mark_moving_islands(settings, result);

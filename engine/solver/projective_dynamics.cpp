@@ -2,6 +2,7 @@
 #include "engine/solver/projective_dynamics.hpp"
 
 #include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
 #include "engine/solver/projective_dynamics_internal.hpp"
 #include "kernels/elasticity/svd3.hpp"
 
@@ -292,6 +293,7 @@ PdResult ProjectiveDynamics::solve(double s, double dt, const std::vector<double
   double omega = 1.0;
   int accelerated = 0;  // iterations since the Chebyshev recurrence (re)started
   for (int k = 0; k < settings_.max_iterations; ++k) {
+    if (k % 16 == 0) stop_point();
     if (!model_.obstacle_planes.empty()) {
       update_planes(x.data());
       if (factor_s_ == s && factor_planes_ != plane_count_ && accelerated >= kPlainIterations)

@@ -36,6 +36,7 @@ const std::vector<Layer> kLayers = {
     {"engine/step_history.hpp", 1},
     {"engine/step_profile.hpp", 1},
     {"engine/step_result.hpp", 1},
+    {"engine/stop_request.", 1},
     {"engine/mesh/", 1},
     // 2: sparse matrices: patterns, islands, CHOLMOD, the island systems, slab operators
     {"engine/sparse/", 2},

@@ -6,6 +6,7 @@
 #include "engine/output/step_checkpoint.hpp"
 #include "engine/run.hpp"
 #include "engine/simulation.hpp"
+#include "tests/engine/stop_support.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -156,5 +157,28 @@ TEST_CASE("a rolled-back step with history is exactly two steps of half the dt: 
     CHECK(recovered.history().contact_memory == halves.history().contact_memory);
     CHECK(recovered.history().kappa == halves.history().kappa);
     CHECK(recovered.last_stats().newton_iterations == iterations);
+  }
+}
+
+// A stop request (SIGINT, SIGTERM) abandons the step under way at its next safe point
+// (engine/stop_request.hpp): the step's attempts are put back, halves that had finished
+// included, and the step taken again is the step never stopped. Stops at the first, the fifth
+// and the twentieth Newton iteration of every step: in the twist's retried halves (a stop in a
+// later half must undo the earlier ones), with joint rounds, with a pushing wall's solves.
+TEST_CASE("a step stopped at a safe point leaves the simulation as it was, and the run goes on as if never stopped") {
+  struct Case {
+    Scene scene;
+    int steps;
+  };
+  const Case cases[] = {{twist_scene(0.1, 4), 3},
+                        {scene_with_dt("double_pendulum.json", 0x1p-9), 12},
+                        {scene_with_dt("block_push.json", 0x1p-8), 24}};
+  for (const Case& c : cases) {
+    int stopped = 0;
+    for (const int64_t at : {1, 5, 20}) {
+      CAPTURE(at);
+      stopped += test::check_stopped_steps(c.scene, c.steps, at);
+    }
+    CHECK(stopped >= c.steps);  // most steps reach the fifth iteration, the twist's the twentieth
   }
 }

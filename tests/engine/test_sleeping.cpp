@@ -6,6 +6,7 @@
 #include "engine/output/step_checkpoint.hpp"
 #include "engine/run.hpp"
 #include "engine/simulation.hpp"
+#include "tests/engine/stop_support.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
@@ -152,4 +153,12 @@ TEST_CASE("a restored simulation with sleeping bodies continues bit for bit") {
   }
   CHECK(restored.state().x == original.state().x);
   CHECK(restored.history().sleep_group == original.history().sleep_group);
+}
+
+TEST_CASE("a step stopped after it woke a sleeping group leaves the group asleep") {
+  // A sleeps from about step 10; B lands on it near step 47, and the step whose motion reaches A
+  // wakes it before its attempts. Stopped there (at its first Newton iteration), the step must put
+  // A back to sleep: the run resumed from that state wakes it itself, as the run never stopped did.
+  const Scene scene = test::scene_from_json(two_cubes(true, "{ \"steps\": 5 }"), "sleep_stopped");
+  CHECK(test::check_stopped_steps(scene, 60, 1) >= 40);
 }

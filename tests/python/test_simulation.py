@@ -199,6 +199,24 @@ def test_ctrl_c_stops_at_a_step_boundary_and_the_simulation_goes_on(tmp_path):
     assert sim.step(2)["step"] == done + 2
 
 
+def test_ctrl_c_inside_a_step_abandons_it_and_the_run_goes_on_as_if_never_stopped(monkeypatch):
+    # SIGINT as step 5's first Newton iteration begins (the engine's test hook, so by step count,
+    # not by wall time): the step is abandoned at that safe point, not finished.
+    reference = nexdyn.Simulation(CUBE_DROP)
+    reference.step(4)
+    at_4 = reference.positions.copy()
+    reference.step(6)
+    monkeypatch.setenv("NEXDYN_TEST_SIGNAL", "INT@5:newton")
+    sim = nexdyn.Simulation(CUBE_DROP)
+    with pytest.raises(KeyboardInterrupt):
+        sim.step(10)
+    assert sim.step_index == 4 and sim.stats["step"] == 4
+    assert np.array_equal(sim.positions, at_4)
+    sim.step(6)
+    assert np.array_equal(sim.positions, reference.positions)
+    assert np.array_equal(sim.velocities, reference.velocities)
+
+
 def test_every_public_name_has_a_docstring_and_is_in_the_stub():
     stub = ast.parse((Path(nexdyn.__file__).parent / "__init__.pyi").read_text())
     stub_names = {node.name for node in stub.body if isinstance(node, (ast.ClassDef, ast.FunctionDef))}

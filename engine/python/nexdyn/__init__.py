@@ -121,9 +121,11 @@ class Simulation:
 
     def step(self, n: int = 1) -> dict:
         """Takes n steps and returns the last one's stats.csv row as a dict (the CLI's column
-        names). The GIL is released during each step; Ctrl-C stops at the next step boundary
-        with KeyboardInterrupt, the simulation still usable. Raises StepFailed for a step that
-        failed after its halvings (the state is the one before it)."""
+        names). The GIL is released during each step. Ctrl-C (on the main thread) abandons the
+        step under way at its next safe point, within a fraction of a second, and raises
+        KeyboardInterrupt with the state of the last finished step; the simulation goes on from
+        there as if never stopped. Raises StepFailed for a step that failed after its halvings
+        (the state is the one before it)."""
         return self._core.step(int(n))
 
     @property

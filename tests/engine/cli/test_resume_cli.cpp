@@ -66,24 +66,25 @@ std::vector<int64_t> checkpoint_steps(const fs::path& out) {
 // Data rows (all but the header) of a stats or timings file.
 int64_t data_rows(const fs::path& file) { return static_cast<int64_t>(test::read_lines(file).size()) - 1; }
 
-// Where a run is stopped: at `step`, as it begins, after its stats row, or after its checkpoint.
+// Where a run is stopped: at `step`, as it begins, after its stats row, after its checkpoint, or
+// inside it, as its first Newton iteration begins.
 struct Stop {
   int64_t step = 0;
   std::string place;
   std::string hook() const { return "KILL@" + std::to_string(step) + ":" + place; }
 };
 
-// `count` stops at increasing steps in [1, total - 1] drawn with `seed`, at varied places (a
+// `count` stops at increasing steps in [1, total - 1] drawn with `seed`, at the `places` in turn (a
 // "checkpoint" stop moved to the next step that writes one). Spread so that the later ones come
 // after the first checkpoint: some runs restart from nothing, the others resume.
-std::vector<Stop> stop_plan(int64_t total, int64_t every, int count, unsigned seed) {
+std::vector<Stop> stop_plan(int64_t total, int64_t every, int count, unsigned seed,
+                            const std::vector<std::string>& places) {
   std::mt19937 rng(seed);
-  const char* places[] = {"begin", "row", "checkpoint"};
   std::vector<Stop> plan;
   int64_t previous = 0;
   for (int k = 0; k < count; ++k) {
     const int64_t last = std::max(previous + 1, previous + (total - 1 - previous) / (count - k));
-    Stop stop{std::uniform_int_distribution<int64_t>(previous + 1, last)(rng), places[(seed + k) % 3]};
+    Stop stop{std::uniform_int_distribution<int64_t>(previous + 1, last)(rng), places[(seed + k) % places.size()]};
     if (stop.place == "checkpoint") {
       const int64_t at = (stop.step + every - 1) / every * every;
       if (at <= total - 1) stop.step = at;
@@ -100,9 +101,11 @@ std::vector<Stop> stop_plan(int64_t total, int64_t every, int count, unsigned se
 // plan and resumed after each (run afresh when no checkpoint was written yet). After each kill the
 // folder must hold exactly what the run had written by then: the stats and timings rows of the
 // steps before (and of the stopped one, past its row), and the newest checkpoints up to there. The
-// finished run must write what the unstopped one did.
+// finished run must write what the unstopped one did. "newton" stops need every step to solve
+// (no scene whose bodies all sleep).
 void check_kill_and_resume(const std::vector<std::string>& args, int64_t total, int64_t every, int kills,
-                           unsigned seed) {
+                           unsigned seed,
+                           const std::vector<std::string>& places = {"begin", "row", "checkpoint"}) {
   const fs::path dir = test::temp_dir("kill_resume");
   const fs::path full = dir / "full", killed = dir / "killed";
   auto with_out = [&](const fs::path& out) {
@@ -115,20 +118,26 @@ void check_kill_and_resume(const std::vector<std::string>& args, int64_t total, 
   REQUIRE(data_rows(full / "stats.csv") == total);
 
   int resumed = 0;
-  for (const Stop& stop : stop_plan(total, every, kills, seed)) {
+  std::vector<int64_t> expected;  // the checkpoints the folder holds, by step
+  for (const Stop& stop : stop_plan(total, every, kills, seed, places)) {
     CAPTURE(stop.hook());
     const bool can_resume = !checkpoint_steps(killed).empty();
     resumed += can_resume;
     CHECK(wait_child(spawn_cli(can_resume ? resume : with_out(killed), stop.hook())).killed_by(SIGKILL));
-    const int64_t rows = stop.place == "begin" ? stop.step - 1 : stop.step;
+    const int64_t rows = stop.place == "begin" || stop.place == "newton" ? stop.step - 1 : stop.step;
     CHECK(data_rows(killed / "stats.partial.csv") == rows);
     CHECK(data_rows(killed / "timings.partial.csv") == rows - (stop.place == "row"));
-    // Written: the checkpoints of every `every` steps up to the stop, of which the newest two are
-    // kept; a stop after a checkpoint's file comes before the oldest of three is removed.
-    const int64_t newest = stop.place == "checkpoint" ? stop.step : (stop.step - 1) / every * every;
-    std::vector<int64_t> expected;
-    for (int64_t c = newest; c >= every && expected.size() < (stop.place == "checkpoint" ? 3u : 2u); c -= every)
-      expected.insert(expected.begin(), c);
+    // Written since the start or the resume: a checkpoint every `every` steps up to the stop, each
+    // followed by the removal of all but the newest two; a stop just after a checkpoint's file
+    // comes before that removal. (A fresh run starts with none.)
+    const int64_t from = expected.empty() ? 0 : expected.back();
+    if (!can_resume) expected.clear();
+    const int64_t last = stop.place == "checkpoint" ? stop.step : stop.step - 1;
+    for (int64_t c = from + every; c <= last; c += every) {
+      expected.push_back(c);
+      if (!(stop.place == "checkpoint" && c == stop.step))
+        while (expected.size() > 2) expected.erase(expected.begin());
+    }
     CHECK(checkpoint_steps(killed) == expected);
   }
   const bool can_resume = !checkpoint_steps(killed).empty();
@@ -147,9 +156,18 @@ TEST_CASE("kill and resume: the cube stack killed at chosen steps writes what an
                         4, 11);
 }
 
-TEST_CASE("kill and resume: the 100-body pile killed at chosen steps writes what an unstopped run does") {
+// The soak of issue 42, short enough for the suite (scripts/soak_resume.sh is the long version):
+// kills at seeded steps at every place, inside Newton included, on the stress scenes.
+TEST_CASE("kill and resume: the 100-body pile killed at chosen steps and places writes what an unstopped run does") {
   check_kill_and_resume({"run", test::scene_path("stress/pile_100.json").string(), "--steps", "30",
-                         "--checkpoint-every", "4", "--threads", "2"}, 30, 4, 3, 7);
+                         "--checkpoint-every", "4", "--threads", "2"}, 30, 4, 5, 14,
+                        {"begin", "row", "checkpoint", "newton"});
+}
+
+TEST_CASE("kill and resume: the 40x40 mat killed at chosen steps and places writes what an unstopped run does") {
+  check_kill_and_resume({"run", test::scene_path("stress/mat_40.json").string(), "--steps", "24",
+                         "--checkpoint-every", "3", "--threads", "2"}, 24, 3, 4, 6,
+                        {"newton", "begin", "row", "checkpoint"});
 }
 
 TEST_CASE("kill and resume: soft bodies landing on affine ones, killed at chosen steps, write what an unstopped run does") {
@@ -170,16 +188,17 @@ TEST_CASE("SIGTERM stops a run with a checkpoint, and a damaged newest checkpoin
   };
   REQUIRE(wait_child(spawn_cli(run_into(dir / "full"))).exited(0));
 
-  // SIGTERM as step 25 begins: the run ends that step, writes a checkpoint of it and exits with
-  // code 128 + 15 (it is not killed by the signal).
+  // SIGTERM as step 25 begins: the run abandons that step at its first safe point, writes a
+  // checkpoint of step 24 and exits with code 128 + 15 (it is not killed by the signal).
   const fs::path out = dir / "stopped";
   CHECK(wait_child(spawn_cli(run_into(out), "TERM@25")).exited(128 + SIGTERM));
-  CHECK(data_rows(out / "stats.partial.csv") == 25);
-  CHECK(checkpoint_steps(out) == std::vector<int64_t>{20, 25});
+  CHECK(data_rows(out / "stats.partial.csv") == 24);
+  CHECK(data_rows(out / "timings.partial.csv") == 24);
+  CHECK(checkpoint_steps(out) == std::vector<int64_t>{20, 24});
 
   // Damage the newest checkpoint: resume names it, falls back to the one before, and still ends
   // where the unstopped run did.
-  const fs::path newest = out / "checkpoints" / "checkpoint_000000025.ckpt";
+  const fs::path newest = out / "checkpoints" / "checkpoint_000000024.ckpt";
   {
     std::fstream f(newest, std::ios::in | std::ios::out | std::ios::binary);
     f.seekp(40);
@@ -189,6 +208,28 @@ TEST_CASE("SIGTERM stops a run with a checkpoint, and a damaged newest checkpoin
   CHECK(r.exit_code == 0);
   CHECK(r.output.find("skipping checkpoint " + newest.string()) != std::string::npos);
   CHECK(r.output.find("checksum mismatch") != std::string::npos);
+  check_same_outputs(dir / "full", out);
+}
+
+TEST_CASE("SIGTERM inside a step's Newton iterations abandons the step: the last finished step, the summary, exit 143") {
+  // The stop comes as step 25's third Newton iteration begins, by step count and not by wall time.
+  const fs::path dir = test::temp_dir("sigterm_newton");
+  const std::string scene = test::scene_path("stress/pile_10.json").string();
+  const std::string args = "run " + scene + " --steps 40 --checkpoint-every 10 --out ";
+  REQUIRE(test::run_cli(args + (dir / "full").string() + " --quiet").exit_code == 0);
+  const fs::path out = dir / "stopped";
+  const auto stopped = test::run_cli_with_env("NEXDYN_TEST_SIGNAL=TERM@25:newton3", args + out.string());
+  CHECK(stopped.exit_code == 128 + SIGTERM);
+  CHECK(data_rows(out / "stats.partial.csv") == 24);
+  CHECK(data_rows(out / "timings.partial.csv") == 24);
+  CHECK(checkpoint_steps(out) == std::vector<int64_t>{20, 24});
+  // The summary of the steps it took, as a finished run prints it, then how to go on.
+  CHECK(stopped.output.find("stopped: 24 steps in ") != std::string::npos);
+  CHECK(stopped.output.find("Newton iterations per step: ") != std::string::npos);
+  CHECK(stopped.output.find("peak memory ") != std::string::npos);
+  CHECK(stopped.output.find("interrupted by SIGTERM after step 24; checkpoint " +
+                            (out / "checkpoints" / "checkpoint_000000024.ckpt").string()) != std::string::npos);
+  REQUIRE(wait_child(spawn_cli({"resume", out.string(), "--quiet"})).exited(0));
   check_same_outputs(dir / "full", out);
 }
 

@@ -276,8 +276,9 @@ TEST_CASE("mpm kill and resume: a particle run killed or stopped at chosen steps
   // The thrown cube (generalized-alpha, a plane with friction) for 20 steps, a frame every 4 and
   // a checkpoint every 5 steps, run once straight through and once stopped again and again:
   // SIGKILL as step 3 begins (no checkpoint yet: run afresh), SIGKILL just after checkpoint 10 is
-  // written, SIGKILL after the stats row of step 13, SIGTERM as step 16 begins (the run ends
-  // that step, writes its checkpoint and exits with 128 + 15), SIGINT after the row of step 18;
+  // written, SIGKILL after the stats row of step 13, SIGTERM at step 16's second Newton iteration
+  // (the run abandons that step, writes a checkpoint of step 15 and exits with 128 + 15), SIGINT
+  // after the row of step 18;
   // each time resumed from the newest checkpoint. The stopped run must end with the same
   // stats.csv (but for wall_seconds), scene.pvd and frame files, byte for byte: the MPM
   // checkpoint must carry every particle's x, v, F, C and abar, and the energy the next row's
@@ -304,13 +305,14 @@ TEST_CASE("mpm kill and resume: a particle run killed or stopped at chosen steps
   CHECK(data_rows(stopped / "stats.partial.csv") == 13);
   CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{5, 10});
 
-  CHECK(wait_child(spawn_cli(resume, "TERM@16")).exited(128 + SIGTERM));
-  CHECK(data_rows(stopped / "stats.partial.csv") == 16);
-  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{15, 16});
+  // SIGTERM inside step 16's Newton solve: the step is abandoned, and step 15 is the last.
+  CHECK(wait_child(spawn_cli(resume, "TERM@16:newton2")).exited(128 + SIGTERM));
+  CHECK(data_rows(stopped / "stats.partial.csv") == 15);
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{10, 15});
 
   CHECK(wait_child(spawn_cli(resume, "INT@18:row")).exited(128 + SIGINT));
   CHECK(data_rows(stopped / "stats.partial.csv") == 18);
-  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{16, 18});
+  CHECK(checkpoint_steps(stopped) == std::vector<int64_t>{15, 18});
 
   REQUIRE(wait_child(spawn_cli(resume)).exited(0));
   REQUIRE(fs::exists(stopped / "stats.csv"));
