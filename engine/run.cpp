@@ -362,6 +362,7 @@ class RunnerOf final : public Runner {
     summary_.profile = simulation_->profile();
     summary_.peak_factor_bytes = simulation_->peak_factor_bytes();
     summary_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    lock_.reset();
     return summary_;
   }
 
@@ -482,9 +483,13 @@ std::unique_ptr<Runner> Runner::start(const Scene& scene, const RunOptions& opti
   record.total_steps = options.steps >= 0 ? options.steps : scene.time.steps;
   record.checkpoint_every = options.checkpoint_every >= 0 ? options.checkpoint_every : scene.output.checkpoint_every;
   std::unique_ptr<RowFile> stats, timings;
+  std::shared_ptr<OutputLock> lock = options.lock;
   if (!out.empty()) {
     const fs::path frames_dir = out / "frames";
     std::error_code ec;
+    fs::create_directories(out, ec);
+    if (ec) throw std::runtime_error(out.string() + ": cannot create the output folder: " + ec.message());
+    if (!lock) lock = OutputLock::acquire(out);
     fs::create_directories(frames_dir, ec);
     if (ec) throw std::runtime_error(frames_dir.string() + ": cannot create the output folder: " + ec.message());
     remove_old_frames(frames_dir);
@@ -495,11 +500,13 @@ std::unique_ptr<Runner> Runner::start(const Scene& scene, const RunOptions& opti
     stats = std::make_unique<RowFile>(out, "stats", stats_header(scene));
     timings = std::make_unique<RowFile>(out, "timings", timings_header());
   }
-  if (scene.mpm)
-    return make_runner(scene, nullptr, std::make_unique<MpmSimulation>(scene), std::move(record), out,
-                       std::move(stats), std::move(timings), options.progress, true, hook);
-  return make_runner(scene, nullptr, std::make_unique<Simulation>(scene), std::move(record), out, std::move(stats),
-                     std::move(timings), options.progress, true, hook);
+  std::unique_ptr<Runner> runner =
+      scene.mpm ? make_runner(scene, nullptr, std::make_unique<MpmSimulation>(scene), std::move(record), out,
+                              std::move(stats), std::move(timings), options.progress, true, hook)
+                : make_runner(scene, nullptr, std::make_unique<Simulation>(scene), std::move(record), out,
+                              std::move(stats), std::move(timings), options.progress, true, hook);
+  runner->lock_ = std::move(lock);
+  return runner;
 }
 
 std::unique_ptr<Runner> Runner::resume(const fs::path& source, bool progress) {
@@ -507,11 +514,15 @@ std::unique_ptr<Runner> Runner::resume(const fs::path& source, bool progress) {
   const SignalHook hook = signal_hook_from_environment();  // a malformed hook: an error before any output
   if (fs::is_regular_file(source, ec)) return resume_from_file(source, hook);
   const fs::path& out = source;
-  if (!fs::exists(out / "stats.partial.csv", ec)) {
+  auto check_unfinished = [&] {
+    if (fs::exists(out / "stats.partial.csv", ec)) return;
     if (fs::exists(out / "stats.csv", ec))
       throw CheckpointError(out.string() + ": the run finished (stats.csv is complete); nothing to resume");
     throw CheckpointError(out.string() + ": no run to resume here (no stats.partial.csv)");
-  }
+  };
+  check_unfinished();  // before the lock: a folder without a run gets no lock file
+  std::shared_ptr<OutputLock> lock = OutputLock::acquire(out);
+  check_unfinished();  // again: the run that held the lock may have finished meanwhile
   const std::vector<fs::path> found = list_checkpoints(out);
   if (found.empty()) throw CheckpointError(out.string() + ": no checkpoint in " + checkpoint_folder(out).string());
   for (const fs::path& path : found) {
@@ -527,11 +538,13 @@ std::unique_ptr<Runner> Runner::resume(const fs::path& source, bool progress) {
     }
     // Frames past the checkpoint are written again; the ones before are listed in its record.
     const Scene& scene = *r.scene;
-    if (r.mpm_simulation)
-      return make_runner(scene, std::move(r.scene), std::move(r.mpm_simulation), std::move(r.record), out,
-                         std::move(stats), std::move(timings), progress, false, hook);
-    return make_runner(scene, std::move(r.scene), std::move(r.simulation), std::move(r.record), out, std::move(stats),
-                       std::move(timings), progress, false, hook);
+    std::unique_ptr<Runner> runner =
+        r.mpm_simulation ? make_runner(scene, std::move(r.scene), std::move(r.mpm_simulation), std::move(r.record),
+                                       out, std::move(stats), std::move(timings), progress, false, hook)
+                         : make_runner(scene, std::move(r.scene), std::move(r.simulation), std::move(r.record), out,
+                                       std::move(stats), std::move(timings), progress, false, hook);
+    runner->lock_ = std::move(lock);
+    return runner;
   }
   throw CheckpointError(out.string() + ": no valid checkpoint (every one was skipped, reasons above)");
 }

@@ -18,6 +18,7 @@
 #pragma once
 
 #include "engine/mpm/mpm_simulation.hpp"
+#include "engine/run_lock.hpp"
 #include "engine/run_record.hpp"
 #include "engine/run_signals.hpp"
 #include "engine/scene/scene.hpp"
@@ -33,7 +34,7 @@
 namespace nexdyn {
 
 // A test hook: with NEXDYN_TEST_SIGNAL=SIGNAL@STEP[:PLACE] in the environment (SIGNAL one of KILL,
-// TERM, INT; PLACE one of begin (the default), row, checkpoint, newton, newtonN) a run sends itself
+// TERM, INT, STOP (the run suspends itself there: a test of the folder's lock); PLACE one of begin (the default), row, checkpoint, newton, newtonN) a run sends itself
 // that signal at step STEP: as the step begins, just after its stats row is written (before its
 // frame and timings row), just after its checkpoint file is in place (before older ones are
 // removed), or inside the step as its Nth Newton iteration begins (newton: the first; counted
@@ -71,6 +72,9 @@ struct RunOptions {
   std::string integrator;         // --integrator given to run (recorded for resume), or empty
   double rho_inf = std::numeric_limits<double>::quiet_NaN();  // --rho-inf (recorded), or NaN
   std::string energy_guard;       // --energy-guard "on" or "off" (recorded), or empty
+  // The output folder's lock (run_lock.hpp) when the caller took it already (nexdyn run takes it
+  // before it loads the scene, whose surface meshes go into the folder); else Runner::start does.
+  std::shared_ptr<OutputLock> lock;
 };
 
 // The integrator of the command line (--integrator NAME, --rho-inf R) in place of the scene's:
@@ -117,12 +121,13 @@ std::string stats_row(const StepStats& s);
 // resume_run step one to its end; the Python module (engine/python) one step at a time.
 class Runner {
  public:
-  // A fresh run of `scene`, which must outlive the runner. With an output folder: clears its old
-  // frames and checkpoints, writes view.json, the rows files' headers and frame 0.
+  // A fresh run of `scene`, which must outlive the runner. With an output folder: locks it (or
+  // refuses, naming the process that writes it), clears its old frames and checkpoints, writes
+  // view.json, the rows files' headers and frame 0.
   static std::unique_ptr<Runner> start(const Scene& scene, const RunOptions& options);
   // Continues the run in the output folder `source` from its newest valid checkpoint (a
   // checkpoint that fails its checks is skipped with a line on stderr), writing on into the
-  // folder; or, when `source` is a checkpoint file, from it without an output folder. Throws
+  // folder, which it locks first (or refuses, writing nothing); or, when `source` is a checkpoint file, from it without an output folder. Throws
   // CheckpointError when there is nothing valid to resume.
   static std::unique_ptr<Runner> resume(const std::filesystem::path& source, bool progress);
   virtual ~Runner();
@@ -139,7 +144,8 @@ class Runner {
   // (the newest two kept), else into `file` (a run without a folder needs one). Its path.
   virtual std::filesystem::path checkpoint(const std::filesystem::path& file = {}) = 0;
   // Ends the run: when every step is done, stats.csv and timings.csv take their final names and
-  // the checkpoints go. Fills the summary's totals. Only close() may be called after it.
+  // the checkpoints go. Fills the summary's totals and lets the folder's lock go. Only close()
+  // may be called after it.
   virtual const RunSummary& close() = 0;
 
   const Scene& scene() const { return scene_; }
@@ -163,6 +169,7 @@ class Runner {
   RunRecord record_;
   SignalHook hook_;
   RunSummary summary_;
+  std::shared_ptr<OutputLock> lock_;  // the output folder's, until close()
 };
 
 // A fresh run into options.out_dir, to its end (or a failed step, or SIGINT / SIGTERM: then

@@ -52,7 +52,7 @@ SignalHook signal_hook_from_environment() {
   const std::string value = text;
   auto fail = [&] {
     throw std::runtime_error(std::string(kTestSignalVariable) + ": expected SIGNAL@STEP[:PLACE] with SIGNAL one of "
-                             "KILL, TERM, INT, STEP >= 1 and PLACE one of begin, row, checkpoint, newton, newtonN "
+                             "KILL, TERM, INT, STOP, STEP >= 1 and PLACE one of begin, row, checkpoint, newton, newtonN "
                              "(N >= 1); got \"" + value + "\"");
   };
   const size_t at = value.find('@');
@@ -61,6 +61,7 @@ SignalHook signal_hook_from_environment() {
   if (name == "KILL") hook.signal = SIGKILL;
   else if (name == "TERM") hook.signal = SIGTERM;
   else if (name == "INT") hook.signal = SIGINT;
+  else if (name == "STOP") hook.signal = SIGSTOP;  // suspended there, holding what it holds
   else fail();
   const size_t colon = value.find(':', at);
   const std::string step = value.substr(at + 1, colon == std::string::npos ? std::string::npos : colon - at - 1);

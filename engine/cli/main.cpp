@@ -316,6 +316,10 @@ RunSummary run_or_resume(const CliArgs& a, std::filesystem::path& out) {
   // The output folder first: tetrahedralised surface bodies are kept in its meshes/ folder.
   const std::filesystem::path out_dir =
       a.out_dir.empty() ? std::filesystem::path("out") / scene_name(a.scene_path) : std::filesystem::path(a.out_dir);
+  // A folder that exists may be another run's: its lock before anything goes into it (a new one
+  // is locked as the run starts).
+  std::shared_ptr<OutputLock> lock;
+  if (std::error_code ec; std::filesystem::is_directory(out_dir, ec)) lock = OutputLock::acquire(out_dir);
   Scene scene = load_scene(a.scene_path, {}, out_dir / "meshes");
   override_integrator(scene, a.integrator, a.rho_inf);
   if (!a.energy_guard.empty()) scene.time.energy_guard = a.energy_guard == "on";
@@ -327,6 +331,7 @@ RunSummary run_or_resume(const CliArgs& a, std::filesystem::path& out) {
   options.integrator = a.integrator;
   options.rho_inf = a.rho_inf;
   options.energy_guard = a.energy_guard;
+  options.lock = std::move(lock);
   out = options.out_dir;
   if (!a.quiet) print_summary(scene);
   return run_scene(scene, options);

@@ -34,13 +34,18 @@ bool integer_column(const std::string& name) {
 class PySimulation {
  public:
   // A fresh run of the scene file `scene` (into `out` when not empty) for `steps` steps (-1: the
-  // scene's time.steps with an output folder, no end without).
+  // scene's time.steps with an output folder, no end without). `lock` is the folder's, when the
+  // caller took it to write the scene file into it; else a folder that exists is locked before
+  // anything (the scene's surface meshes) goes into it.
   PySimulation(const std::string& scene, const std::string& out, std::optional<int> threads, int64_t steps,
-               int64_t checkpoint_every)
+               int64_t checkpoint_every, std::shared_ptr<OutputLock> lock)
       : threads_(thread_limit(threads)) {
     const std::filesystem::path out_dir = out;
+    if (std::error_code ec; !lock && !out_dir.empty() && std::filesystem::is_directory(out_dir, ec))
+      lock = OutputLock::acquire(out_dir);
     scene_ = std::make_unique<Scene>(load_scene(scene, {}, out_dir.empty() ? out_dir : out_dir / "meshes"));
     RunOptions options;
+    options.lock = std::move(lock);
     options.out_dir = out_dir;
     options.steps = steps >= 0 ? steps : out_dir.empty() ? std::numeric_limits<int64_t>::max() : -1;
     options.checkpoint_every = checkpoint_every;
@@ -55,6 +60,8 @@ class PySimulation {
       throw;
     } catch (const CheckpointError&) {
       throw;
+    } catch (const OutputFolderBusy&) {
+      throw;  // RuntimeError: another run writes the folder
     } catch (const std::runtime_error& e) {
       throw CheckpointError(e.what());  // a changed scene or mesh: the run cannot be continued
     }
@@ -215,9 +222,16 @@ PYBIND11_MODULE(_core, m) {
       PyErr_SetString(checkpoint_error ? checkpoint_error.ptr() : PyExc_RuntimeError, e.what());
     }
   });
+  // The lock of an output folder (engine/run_lock.hpp), held while the object lives: taken before
+  // the scene file of a dict scene is written into the folder. OutputFolderBusy is a RuntimeError.
+  py::class_<nexdyn::OutputLock, std::shared_ptr<nexdyn::OutputLock>>(m, "_OutputLock");
+  m.def("_lock_folder", [](const std::string& folder) { return nexdyn::OutputLock::acquire(folder); },
+        py::arg("folder"));
   py::class_<PySimulation>(m, "_Simulation")
-      .def(py::init<const std::string&, const std::string&, std::optional<int>, int64_t, int64_t>(), py::arg("scene"),
-           py::arg("out"), py::arg("threads"), py::arg("steps"), py::arg("checkpoint_every"))
+      .def(py::init<const std::string&, const std::string&, std::optional<int>, int64_t, int64_t,
+                    std::shared_ptr<nexdyn::OutputLock>>(),
+           py::arg("scene"), py::arg("out"), py::arg("threads"), py::arg("steps"), py::arg("checkpoint_every"),
+           py::arg("lock") = nullptr)
       .def(py::init<const std::string&, std::optional<int>>(), py::arg("source"), py::arg("threads"))
       .def("step", &PySimulation::step, py::arg("n"))
       .def("stats", &PySimulation::stats)

@@ -217,6 +217,23 @@ def test_ctrl_c_inside_a_step_abandons_it_and_the_run_goes_on_as_if_never_stoppe
     assert np.array_equal(sim.velocities, reference.velocities)
 
 
+def test_an_output_folder_has_one_writer(tmp_path):
+    first = nexdyn.Simulation(CUBE_DROP, out=tmp_path / "run", steps=4)
+    with pytest.raises(RuntimeError, match=f"another run is writing this output folder \\(process {os.getpid()}"):
+        nexdyn.Simulation(CUBE_DROP, out=tmp_path / "run", steps=4)
+    with pytest.raises(RuntimeError, match="another run is writing"):
+        nexdyn.Simulation.resume(tmp_path / "run")
+    first.step(4)  # the run finishes and lets the folder go
+    assert nexdyn.Simulation(CUBE_DROP, out=tmp_path / "run", steps=4).step_index == 0
+    # A dict scene is written into the folder as scene.json: not over a running one's.
+    running = nexdyn.Simulation(cube_drop(), out=tmp_path / "dict", steps=4)
+    written = (tmp_path / "dict" / "scene.json").read_bytes()
+    with pytest.raises(RuntimeError, match="another run is writing"):
+        nexdyn.Simulation(cube_drop(gravity=[0, -1, 0]), out=tmp_path / "dict", steps=4)
+    assert (tmp_path / "dict" / "scene.json").read_bytes() == written
+    running.step(4)
+
+
 def test_every_public_name_has_a_docstring_and_is_in_the_stub():
     stub = ast.parse((Path(nexdyn.__file__).parent / "__init__.pyi").read_text())
     stub_names = {node.name for node in stub.body if isinstance(node, (ast.ClassDef, ast.FunctionDef))}

@@ -82,7 +82,8 @@ class Simulation:
     checkpoint_every: steps between the output folder's checkpoints (default: the scene's
         output.checkpoint_every).
 
-    Raises SceneError for a scene that cannot be read.
+    Raises SceneError for a scene that cannot be read, and RuntimeError when another run (of
+    this process or another) writes the output folder: one writer per folder.
     """
 
     def __init__(self, scene: Union[PathLike, Mapping[str, Any]], out: Optional[PathLike] = None,
@@ -93,10 +94,12 @@ class Simulation:
             self._core = _core_simulation
             return
         out_dir = "" if out is None else os.fspath(out)
+        lock = None  # the output folder's, before the scene file goes into it
         if isinstance(scene, Mapping):
             document = resolve_mesh_paths(dict(scene), base_dir if base_dir is not None else os.getcwd())
             if out_dir:
                 os.makedirs(out_dir, exist_ok=True)
+                lock = _core._lock_folder(out_dir)
                 scene_file = os.path.join(out_dir, "scene.json")
             else:
                 # Named by its content, and kept: a checkpoint of this simulation names the file.
@@ -109,14 +112,15 @@ class Simulation:
         else:
             scene_file = os.fspath(scene)
         self._core = _core._Simulation(scene_file, out_dir, threads, -1 if steps is None else int(steps),
-                                       -1 if checkpoint_every is None else int(checkpoint_every))
+                                       -1 if checkpoint_every is None else int(checkpoint_every), lock)
 
     @classmethod
     def resume(cls, source: PathLike, threads: Optional[int] = None) -> "Simulation":
         """Continues a run: `source` is an output folder (its newest valid checkpoint; the
         simulation writes on into the folder, as `nexdyn resume` does) or a checkpoint file
         written by checkpoint(path) (stepped without an output folder). The steps that follow
-        are bit for bit those the run would have taken. Raises CheckpointError."""
+        are bit for bit those the run would have taken. Raises CheckpointError, and RuntimeError
+        when another run writes the folder."""
         return cls(None, _core_simulation=_core._Simulation(os.fspath(source), threads))  # type: ignore[arg-type]
 
     def step(self, n: int = 1) -> dict:

@@ -254,6 +254,71 @@ TEST_CASE("SIGINT after a step's stats row stops the run at that step, also with
   CHECK_FALSE(fs::exists(bad / "stats.partial.csv"));
 }
 
+namespace {
+
+// Every file under `out` with its bytes (the lock file, and the folder's whole state).
+std::map<std::string, std::string> folder_bytes(const fs::path& out) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::recursive_directory_iterator(out))
+    files[fs::relative(entry.path(), out).string()] = entry.is_regular_file() ? read_bytes(entry.path()) : "(folder)";
+  return files;
+}
+
+}  // namespace
+
+TEST_CASE("one writer per output folder: a second run or resume is refused, names the holder, writes nothing") {
+  const fs::path dir = test::temp_dir("folder_lock");
+  const std::string scene = test::scene_path("stress/pile_10.json").string();
+  const fs::path out = dir / "run";
+  const std::vector<std::string> run = {"run", scene, "--steps", "20", "--checkpoint-every", "5", "--quiet", "--out",
+                                        out.string()};
+  // The first run suspends itself after step 7's row (SIGSTOP through the test hook), holding the
+  // folder: by step count, not by wall time.
+  const pid_t holder = spawn_cli(run, "STOP@7:row");
+  int status = 0;
+  REQUIRE(waitpid(holder, &status, WUNTRACED) == holder);
+  REQUIRE(WIFSTOPPED(status));
+  const auto before = folder_bytes(out);
+  CHECK(before.count(".nexdyn.lock") == 1);
+  const std::string pid = "process " + std::to_string(holder);
+  for (const std::string& args : {"run " + scene + " --steps 20 --out " + out.string(), "resume " + out.string()}) {
+    CAPTURE(args);
+    const auto refused = test::run_cli(args);
+    CHECK(refused.exit_code == 1);
+    CHECK(refused.output.find(out.string() + ": another run is writing this output folder (" + pid) !=
+          std::string::npos);
+    CHECK(folder_bytes(out) == before);
+  }
+  // The lock dies with its process, even by SIGKILL: the folder resumes.
+  kill(holder, SIGKILL);
+  CHECK(wait_child(holder).killed_by(SIGKILL));
+  REQUIRE(wait_child(spawn_cli({"resume", out.string(), "--quiet"})).exited(0));
+  std::vector<std::string> full = run;
+  full.back() = (dir / "full").string();
+  REQUIRE(wait_child(spawn_cli(full)).exited(0));
+  check_same_outputs(dir / "full", out);
+}
+
+TEST_CASE("one writer per output folder within a process too, and the lock goes with its holder") {
+  const fs::path dir = test::temp_dir("folder_lock_process");
+  {
+    const auto first = OutputLock::acquire(dir);
+    try {
+      OutputLock::acquire(dir);
+      FAIL("a second lock of the folder in the same process was granted");
+    } catch (const std::runtime_error& e) {
+      CHECK(std::string(e.what()).find("process " + std::to_string(getpid()) + " (this one)") != std::string::npos);
+    }
+    // Another process is refused while this one holds it, and told which process does.
+    test::write_text(dir / "stats.partial.csv", "step\n");
+    const auto other = test::run_cli("resume " + dir.string());
+    CHECK(other.exit_code == 1);
+    CHECK(other.output.find("another run is writing this output folder (process " + std::to_string(getpid())) !=
+          std::string::npos);
+  }
+  CHECK_NOTHROW(OutputLock::acquire(dir));  // released with its last holder
+}
+
 TEST_CASE("resume refuses a finished run, a folder without a run and a changed scene file, and repeats a failed step") {
   const fs::path dir = test::temp_dir("resume_refuse");
   const auto finished = test::run_cli("run " + test::scene_path("cube_stack.json").string() +
