@@ -31,7 +31,7 @@ asan_skip+="|every closed IPC surface keeps its surface|mpm retry: a step taken 
 asan_skip+="|mpm free fall follows the parabola|mpm conserves momentum without gravity|mpm hanging column settles"
 asan_skip+="|first bending frequency approaches|Chebyshev needs at least 5x|mpm plane conditions: separating and slip"
 asan_skip+="|mpm boundary box moving with velocity|vibration decays at the Rayleigh rate"
-asan_skip+="|affine bodies: a ten-box tower|kill and resume: soft bodies landing on affine"
+asan_skip+="|affine bodies: a ten-box tower|kill and resume: soft bodies landing on affine|kill and resume: the 40x40 mat"
 asan_skip+="|$tsan_tests"
 jobs=$(nproc)
 # What each mode needs: the demo the program, the tests the program and the test suite (the

@@ -8,6 +8,8 @@
 // reference BLAS would report a bad one through xerbla; CHOLMOD passes none).
 #include "engine/sparse/cholmod_runtime.hpp"
 
+#include "engine/stop_request.hpp"
+
 #include <SuiteSparse_config.h>
 #include <dlfcn.h>
 #include <malloc.h>
@@ -181,9 +183,17 @@ void dtrsm_(const char* side, const char* uplo, const char* trans, const char* d
 // Cholesky factor of A in place: A = L L^T in the lower triangle (uplo L) or U^T U in the upper.
 // info: 0, or j when the leading minor of order j is not positive definite (the factor is then
 // complete up to column j - 1, as LAPACK's).
+//
+// A stop request (engine/stop_request.hpp) fails it at column 1: CHOLMOD then ends the
+// factorisation of a big island at the supernode under way instead of finishing it (seconds on
+// the folding 100x100 mat), and CholmodSolver::factorize throws the stop.
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info) {
   *info = 0;
   if (*n <= 0) return;
+  if (nexdyn::stop_requested() != 0) {
+    *info = 1;
+    return;
+  }
   Matrix a_(a, *n, *n, Eigen::OuterStride<>(*lda));
   // Eigen's in-place blocked Cholesky (what Eigen::LLT runs) returns the failing column, which
   // LLT's public interface does not.

@@ -2,6 +2,7 @@
 #include "engine/sparse/cholmod_solver.hpp"
 
 #include "engine/sparse/cholmod_runtime.hpp"
+#include "engine/stop_request.hpp"
 
 #include <cholmod.h>
 
@@ -124,6 +125,7 @@ StepStatus CholmodSolver::factorize(const double* values) {
   }
   cholmod_sparse a = wrap(n_, col_ptr_, row_idx_, values);
   const int ok = cholmod_l_factorize(&a, factor_, common_);
+  stop_point();  // a stop request cut the factorisation short (cholmod_runtime.cpp's dpotrf_)
   if (common_->status == CHOLMOD_NOT_POSDEF) {
     error_ = "matrix not positive definite at column " + std::to_string(factor_->minor);
     return StepStatus::factorization_failed;

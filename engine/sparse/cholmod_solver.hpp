@@ -40,7 +40,8 @@ class CholmodSolver {
 
   // Numeric factorisation with the given values (same pattern as analyze): ok,
   // factorization_failed (not positive definite) or linear_solver_failed (no analysis to factorise
-  // with, or CHOLMOD failed).
+  // with, or CHOLMOD failed). Throws StepStopped (engine/stop_request.hpp) when a stop request
+  // came during it: it may then have ended early, leaving no usable factor.
   StepStatus factorize(const double* values);
 
   // Solves A x = b with the last factorisation: ok, or linear_solver_failed (x is then left

@@ -3,6 +3,7 @@
 // where the test says on any machine) and continued with `nexdyn resume` writes the same
 // stats.csv (all but wall_seconds), frames and scene.pvd as a run never stopped; SIGTERM stops a run with a checkpoint; a damaged newest checkpoint is
 // skipped for the one before; resume refuses what it cannot continue.
+#include "engine/stop_request.hpp"
 #include "tests/engine/cli/child_process.hpp"
 #include "tests/engine/test_support.hpp"
 
@@ -231,6 +232,27 @@ TEST_CASE("SIGTERM inside a step's Newton iterations abandons the step: the last
                             (out / "checkpoints" / "checkpoint_000000024.ckpt").string()) != std::string::npos);
   REQUIRE(wait_child(spawn_cli({"resume", out.string(), "--quiet"})).exited(0));
   check_same_outputs(dir / "full", out);
+}
+
+TEST_CASE("a first SIGTERM or SIGINT asks for a stop; a second one ends the process at once") {
+  auto caught = [](int signal) {  // whether a handler takes the signal, not the system's default
+    struct sigaction now {};
+    sigaction(signal, nullptr, &now);
+    return now.sa_handler != SIG_DFL;
+  };
+  for (const int signal : {SIGTERM, SIGINT}) {
+    CAPTURE(signal);
+    StopSignals signals;
+    CHECK(signals.received() == 0);
+    CHECK(caught(signal));
+    std::raise(signal);
+    CHECK(signals.received() == signal);
+    CHECK(stop_requested() == signal);
+    CHECK_THROWS_AS(stop_point(), StepStopped);
+    // The handler gave the signal back to the system: a second one is not caught.
+    CHECK_FALSE(caught(signal));
+  }
+  CHECK(StopSignals().received() == 0);  // a new run starts without the old request
 }
 
 TEST_CASE("SIGINT after a step's stats row stops the run at that step, also without periodic checkpoints") {

@@ -5,12 +5,14 @@
 // does not read it) and a matrix whose third leading minor is not positive definite; and CHOLMOD's
 // memory: aligned, big blocks on huge-page boundaries, realloc's contract kept.
 #include "engine/sparse/cholmod_runtime.hpp"
+#include "engine/stop_request.hpp"
 
 #include <SuiteSparse_config.h>
 #include <dlfcn.h>
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <limits>
 #include <random>
@@ -266,6 +268,15 @@ TEST_CASE("cholmod runtime: dgemv against plain loops with strides, dpotrf's fac
     bad(2, 2) = -1.0;
     dpotrf_(uplo, &size, bad.data.data(), &bad.ld, &info);
     CHECK(info == 3);
+
+    // A stop request (engine/stop_request.hpp) fails it at once at column 1, untouched, so that
+    // CHOLMOD ends a big factorisation at the supernode under way.
+    Dense stopped = spd;
+    nexdyn::request_stop(SIGTERM);
+    dpotrf_(uplo, &size, stopped.data.data(), &stopped.ld, &info);
+    nexdyn::clear_stop_request();
+    CHECK(info == 1);
+    CHECK(stopped.data == spd.data);
   }
 }
 

@@ -4,6 +4,7 @@
 // linear_solver_failed naming the call and CHOLMOD's status, nothing throws, and the same solver
 // works again once the matrix or the memory is back.
 #include "engine/sparse/cholmod_solver.hpp"
+#include "engine/stop_request.hpp"
 #include "engine/sparse/hessian_pattern.hpp"
 #include "tests/engine/solver/suitesparse_out_of_memory.hpp"
 #include "tests/engine/test_support.hpp"
@@ -13,6 +14,7 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <csignal>
 #include <limits>
 #include <string>
 #include <vector>
@@ -150,5 +152,18 @@ TEST_CASE("cholmod solver: out of memory in the analysis, the factorisation or t
     CHECK(x == std::vector<double>(Tridiagonal::n, -7.0));
     REQUIRE(third.solve(t.rhs.data(), x.data()) == StepStatus::ok);
     CHECK(t.residual(x) <= 1e-14);
+  }
+}
+
+TEST_CASE("cholmod solver: a stop request during a factorisation throws the stop, and the next one factorises") {
+  for (const bool supernodal : {false, true}) {
+    CAPTURE(supernodal);
+    const Tridiagonal t;
+    CholmodSolver solver(supernodal);
+    REQUIRE(t.analyze(solver) == StepStatus::ok);
+    request_stop(SIGTERM);
+    CHECK_THROWS_AS(solver.factorize(t.values.data()), StepStopped);
+    clear_stop_request();
+    check_solves(solver, t);
   }
 }
