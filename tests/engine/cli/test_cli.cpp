@@ -93,12 +93,13 @@ TEST_CASE("output.formats \"bodies\" writes a row per body per frame: a falling 
 }
 
 TEST_CASE("resume refuses a run whose stats header another version wrote, and leaves its rows alone") {
-  // A run stopped at step 5, its header then made another version's (one column renamed, the
+  // A run stopped after step 5, its header then made another version's (one column renamed, the
   // same length, as when a later version appends or renames a column): resuming would append
   // rows that do not match it.
   const fs::path out = test::temp_dir("cli_resume_header") / "run";
   const std::string scene = test::scene_path("cube_drop.json").string();
-  REQUIRE(test::run_cli_with_env("NEXDYN_TEST_SIGNAL=TERM@5", "run " + scene + " --steps 10 --quiet --out " + out.string())
+  REQUIRE(test::run_cli_with_env("NEXDYN_TEST_SIGNAL=TERM@5:row", "run " + scene + " --steps 10 --quiet --out " +
+                                                                      out.string())
               .exit_code == 143);
   std::vector<std::string> rows = test::read_lines(out / "stats.partial.csv");
   REQUIRE(rows.size() == 6);

@@ -234,7 +234,7 @@ TEST_CASE("SIGTERM inside a step's Newton iterations abandons the step: the last
   check_same_outputs(dir / "full", out);
 }
 
-TEST_CASE("a first SIGTERM or SIGINT asks for a stop; a second one ends the process at once") {
+TEST_CASE("a first SIGTERM or SIGINT asks for a stop, and a second one ends the process at once") {
   auto caught = [](int signal) {  // whether a handler takes the signal, not the system's default
     struct sigaction now {};
     sigaction(signal, nullptr, &now);
