@@ -9,7 +9,9 @@ wrote (stats.csv but for wall_seconds, scene.pvd and every frame).
 Each round runs one scene afresh and stops it several times before it ends. A stop is the test hook
 NEXDYN_TEST_SIGNAL (engine/run.hpp): SIGKILL as a step begins, after its stats row, just after a
 checkpoint file is in place, or inside the step at a Newton iteration; or SIGTERM / SIGINT at a
-Newton iteration (the step is abandoned and the run exits 143 / 130 with a checkpoint). Each stop
+Newton iteration (the step is abandoned and the run exits 143 / 130 with a checkpoint); with
+--timed P, a share P of the stops is SIGTERM sent after a random time instead, which lands at
+whichever safe point comes next (a CCD batch, a line-search trial, a factorisation). Each stop
 is one cycle; after it the run is resumed (or run afresh when no checkpoint was written yet), on 1
 or 2 threads drawn at random. The rounds go round the scenes until --cycles stops are done.
 
@@ -32,13 +34,20 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 DEFAULT_SCENES = ["scenes/stress/pile_100.json", "scenes/stress/mat_40.json"]
 
 
-def run(nexdyn, args, hook=None):
+def run(nexdyn, args, hook=None, term_after=None):
+    """Runs nexdyn with the test hook `hook`, or sends it SIGTERM after `term_after` seconds."""
     env = {k: v for k, v in os.environ.items() if k != "NEXDYN_TEST_SIGNAL"}
     if hook:
         env["NEXDYN_TEST_SIGNAL"] = hook
-    done = subprocess.run([str(nexdyn)] + args + ["--quiet"], env=env, stdout=subprocess.DEVNULL,
-                          stderr=subprocess.PIPE, text=True)
-    return done.returncode, done.stderr
+    child = subprocess.Popen([str(nexdyn)] + args + ["--quiet"], env=env, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True)
+    if term_after is not None:
+        try:
+            child.wait(timeout=term_after)
+        except subprocess.TimeoutExpired:
+            child.send_signal(signal.SIGTERM)
+    _, err = child.communicate()
+    return child.returncode, err
 
 
 def outputs(folder):
@@ -98,6 +107,9 @@ def main():
     parser.add_argument("--every", type=int, default=4, help="steps between checkpoints (default 4)")
     parser.add_argument("--stops", type=int, default=5, help="stops per round (default 5)")
     parser.add_argument("--scene", action="append", help="scenes to soak (default pile_100 and mat_40)")
+    parser.add_argument("--timed", type=float, default=0.0, metavar="P",
+                        help="with probability P a stop is instead SIGTERM sent after a random 0.2 to 3 s, "
+                             "wherever the run is then (default 0: every stop by the hook)")
     parser.add_argument("--nexdyn", default=str(ROOT / "build" / "nexdyn"))
     parser.add_argument("--work", help="folder for the runs (default a temporary one, removed)")
     a = parser.parse_args()
@@ -128,11 +140,17 @@ def main():
             resuming = has_checkpoint(folder)
             resumes += resuming
             args = (["resume", str(folder)] if resuming else fresh) + ["--threads", threads]
-            code, err = run(a.nexdyn, args, f"{name}@{step}:{place}")
+            if rng.random() < a.timed:  # wherever the run is after a while: any safe point
+                delay = rng.uniform(0.2, 3.0)
+                code, err = run(a.nexdyn, args, term_after=delay)
+                name, trail_entry = "TERM", f"TERM after {delay:.2f} s"
+            else:
+                code, err = run(a.nexdyn, args, f"{name}@{step}:{place}")
+                trail_entry = f"{name}@{step}:{place}"
             expected = {"KILL": -signal.SIGKILL, "TERM": 128 + signal.SIGTERM, "INT": 128 + signal.SIGINT}[name]
-            trail.append(f"{name}@{step}:{place}/{threads}t")
+            trail.append(f"{trail_entry}/{threads}t")
             if code == 0 and (folder / "stats.csv").exists():
-                trail[-1] += "(fewer iterations: ran to the end)"
+                trail[-1] += "(ran to the end first: fewer Newton iterations, or the delay too long)"
                 break
             if code != expected:
                 failures.append(f"{scene.name} round {rounds}: {trail[-1]} ended with {code}, not {expected}: "
