@@ -122,7 +122,7 @@ StepOutcome Simulation::step() {
   // The groups woken for this step sleep again if the step is stopped: a run resumed from its
   // start must wake them itself, as the run never stopped did.
   std::optional<StepHistory> before_waking;
-  if (sleeping_) {
+  if (sleeping_ && sleeping_->num_sleeping() > 0) {
     before_waking = history_;
     sleeping_->wake_near_motion(state_, scene_.time.dt);
   }
