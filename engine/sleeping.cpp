@@ -1,13 +1,12 @@
 // Sleeping bodies (see sleeping.hpp).
 #include "engine/sleeping.hpp"
 
-#include "engine/sparse/islands.hpp"
-
 #include <Eigen/Core>
 
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <utility>
 
 namespace nexdyn {
 
@@ -80,13 +79,23 @@ void SleepingBodies::wake_near_motion(const State& state, double dt) {
   if (std::none_of(group.begin(), group.end(), [](int32_t g) { return g >= 0; })) return;
   // The pairs that the awake bodies' motion x -> x + dt v brings within dhat: the broad phase
   // of the moving vertices only, so this costs what the awake bodies cost.
+  // Bodies slower than the rest speed are left out: they rest against their sleeping neighbours
+  // (within dhat of them), and what they move in a step the barrier holds off; should they speed
+  // up, update() wakes their neighbours after the step.
+  const double speed2 = velocity_ * velocity_;
+  std::vector<uint8_t> fast(kind_.size(), 0);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t b = model_.vertex_body[v];
+    if (kind_[b] == Kind::fixed || group[b] >= 0 || fast[b] || model_.axis_node(v)) continue;
+    fast[b] = kind_[b] == Kind::driven || Eigen::Vector3d::Map(&state.v[3 * int64_t{v}]).squaredNorm() >= speed2;
+  }
   std::vector<uint8_t> awake(model_.num_vertices, 0);
   std::vector<double>& end = end_;
   end = state.x;
   bool any_awake = false;
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     const int32_t b = model_.vertex_body[v];
-    if (kind_[b] == Kind::fixed || group[b] >= 0 || model_.eliminated(v)) continue;
+    if (!fast[b] || model_.eliminated(v)) continue;
     awake[v] = 1;
     any_awake = true;
     for (int d = 0; d < 3; ++d) end[3 * int64_t{v} + d] += dt * state.v[3 * int64_t{v} + d];
@@ -141,12 +150,14 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
     // group waits for another one is not failed by the sum of its windows' jitter.
     if (++rest[b] % steps_ == 0) set_anchor(b, state);
   }
-  // Contact groups over the free and driven bodies.
-  DisjointSets sets;
-  sets.reset(num_bodies);
+  // The bodies each body touches (contact candidates, joints), over the free and driven bodies.
+  std::vector<std::pair<int32_t, int32_t>>& links = links_;
+  links.clear();
   auto link = [&](int32_t u, int32_t w) {
     const int32_t a = model_.vertex_body[u], b = model_.vertex_body[w];
-    if (a != b && kind_[a] != Kind::fixed && kind_[b] != Kind::fixed) sets.join(a, b);
+    if (a == b || kind_[a] == Kind::fixed || kind_[b] == Kind::fixed) return;
+    links.emplace_back(a, b);
+    links.emplace_back(b, a);
   };
   for (const IndexPair& pr : candidates.vertex_triangle)
     link(pr.first, model_.surface_triangles[3 * int64_t{pr.second}]);
@@ -154,23 +165,30 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
     link(model_.surface_edges[2 * int64_t{pr.first}], model_.surface_edges[2 * int64_t{pr.second}]);
   for (const Joint& joint : model_.joints)
     for (int k = 1; k < joint.count; ++k) link(joint.vertex[0], joint.vertex[k]);
-  // A group sleeps when every body in it is ready; otherwise every body in it is awake.
-  std::vector<uint8_t> ready(num_bodies, 1);
-  for (int32_t b = 0; b < num_bodies; ++b)
-    if (kind_[b] != Kind::fixed && !(kind_[b] == Kind::free && (group[b] >= 0 || rest[b] >= steps_)))
-      ready[sets.find(b)] = 0;
+  // Ready: at rest for the whole window, or asleep. Moving: awake and not still this step, or
+  // driven. Both are read before anything changes, so the decisions do not depend on body order.
+  std::vector<uint8_t> ready(num_bodies, 0), moving(num_bodies, 0);
+  for (int32_t b = 0; b < num_bodies; ++b) {
+    ready[b] = kind_[b] == Kind::free && (group[b] >= 0 || rest[b] >= steps_);
+    moving[b] = kind_[b] == Kind::driven || (kind_[b] == Kind::free && group[b] < 0 && !still[b]);
+  }
+  // An awake ready body sleeps when every body it touches is ready too; a sleeping body wakes when
+  // a body it touches moves. So a body still creeping keeps awake only the bodies it touches.
+  std::vector<uint8_t> neighbours_ready(num_bodies, 1), neighbour_moves(num_bodies, 0);
+  for (const auto& [a, b] : links) {
+    if (!ready[b]) neighbours_ready[a] = 0;
+    if (moving[b]) neighbour_moves[a] = 1;
+  }
   for (int32_t b = 0; b < num_bodies; ++b) {
     if (kind_[b] != Kind::free) continue;
-    const int32_t root = sets.find(b);
-    if (!ready[root]) {
-      if (group[b] >= 0) wake(b, state);
+    if (group[b] >= 0) {
+      if (neighbour_moves[b]) wake(b, state);
       continue;
     }
-    if (group[b] < 0) {
-      const BodyRange& r = model_.bodies[b];
-      std::fill_n(state.v.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count}, 0.0);
-    }
-    group[b] = root;
+    if (!ready[b] || !neighbours_ready[b]) continue;
+    const BodyRange& r = model_.bodies[b];
+    std::fill_n(state.v.begin() + 3 * int64_t{r.vertex_begin}, 3 * int64_t{r.vertex_count}, 0.0);
+    group[b] = b;
   }
 }
 

@@ -1,23 +1,30 @@
-// Sleeping bodies: a body that has stayed still for a while stops being solved, as Box2D's
-// sleeping islands do, so that a pile at rest costs what its moving bodies cost (issue 19).
+// Sleeping bodies: a body that has stayed still for a while stops being solved, as in Box2D,
+// so that a pile at rest costs what its moving bodies cost (issue 19).
 //
-// The unit of sleep is a contact group: the free bodies linked by contact candidates (pairs of
-// surface primitives within dhat of each other) or joints. Static bodies (obstacle meshes, bodies
-// whose every vertex is fixed) and planes link nothing, as the ground links nothing in Box2D.
+// The unit of sleep is a body, judged by the bodies it touches: those linked to it by contact
+// candidates (pairs of surface primitives within dhat of each other) or joints. Static bodies
+// (obstacle meshes, bodies whose every vertex is fixed) and planes link nothing, as the ground
+// links nothing in Box2D.
 //
 //   at rest       after every step, an awake body whose every vertex moves slower than
 //                 `velocity` and has drifted less than half the window's worth of it
 //                 (0.5 * velocity * steps * dt) from where it was at the start of its current
 //                 window of `steps` rest steps counts one more step at rest; any other body
 //                 starts its count again from its current position.
-//   falls asleep  a group all of whose bodies have been at rest `steps` steps (or sleep) sleeps
-//                 as one: velocities zero, positions, accelerations and contact memory frozen.
-//   wakes         a sleeping group wakes when (a) after a step it is linked to a body that is
-//                 not ready to sleep (a body landed on it, or one of its supports moved), or
-//                 (b) before a step, an awake body's motion at its velocity (x to x + dt v)
-//                 brings one of its surface primitives within dhat of one of the group's (the
-//                 contact broad phase over the awake vertices). A body with a moving prescribed
-//                 vertex never sleeps and keeps its group awake.
+//   ready         a body at rest for `steps` steps, or asleep.
+//   falls asleep  a ready body every body it touches is ready too: velocities zero, positions,
+//                 accelerations and contact memory frozen.
+//   wakes         a sleeping body wakes when (a) after a step a body it touches moved (awake and
+//                 not at rest this step, or driven), or (b) before a step, the motion at its
+//                 velocity (x to x + dt v) of an awake body moving at least `velocity` brings one
+//                 of its surface primitives within dhat of one of the sleeper's (the contact
+//                 broad phase over those vertices). A body with a moving prescribed vertex never
+//                 sleeps, and the bodies it touches stay awake.
+//
+// So a body still creeping in a pile at rest keeps awake the bodies it touches, not the pile
+// (Box2D sleeps whole islands: one creeping body would keep a thousand awake). A woken body that
+// does not move wakes no one; one that is pushed wakes its sleeping neighbours after the step, so
+// a disturbance wakes a pile ring by ring as it spreads.
 //
 // A sleeping body's vertices are held where they are (NewtonSolver::hold), so they enter the
 // step as fixed obstacles: CCD and the barrier still see them, and no step can end intersecting
@@ -35,6 +42,7 @@
 #include "engine/step_history.hpp"
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace nexdyn {
@@ -55,7 +63,7 @@ class SleepingBodies {
   // Before a step of length dt: wakes the sleeping groups an awake body's motion may reach.
   void wake_near_motion(const State& state, double dt);
   // After a step (with candidates: the contact candidates at state.x, within dhat): counts the
-  // steps at rest, then puts ready groups to sleep (their v = 0) and wakes the others.
+  // steps at rest, then puts ready bodies to sleep (their v = 0) and wakes the pushed ones.
   void update(State& state, const ContactCandidates& candidates, double dt);
 
   // Vertices of the sleeping bodies, ascending.
@@ -83,6 +91,7 @@ class SleepingBodies {
   // wake_near_motion's workspaces: the end of the awake bodies' motion (3n), the pairs it reaches.
   std::vector<double> end_;
   ContactCandidates reached_;
+  std::vector<std::pair<int32_t, int32_t>> links_;  // update()'s workspace: (body, body it touches)
 };
 
 }  // namespace nexdyn

@@ -57,7 +57,8 @@ struct StepHistory {
   static constexpr uint64_t kContactPatternUnbuilt = ~uint64_t{0};
 
   // Sleeping bodies (engine/sleeping.hpp), empty when sleeping is off: per body the steps it has
-  // been at rest and its sleeping group (-1: awake), and (3n) where each vertex's rest began [m].
+  // been at rest and its sleeping group (-1: awake; a sleeper is its own group, an older build's
+  // checkpoint may hold shared ones), and (3n) where each vertex's rest began [m].
   std::vector<int32_t> rest_steps;
   std::vector<int32_t> sleep_group;
   std::vector<double> rest_anchor;

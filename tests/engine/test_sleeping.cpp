@@ -162,3 +162,67 @@ TEST_CASE("a step stopped after it woke a sleeping group leaves the group asleep
   const Scene scene = test::scene_from_json(two_cubes(true, "{ \"steps\": 5 }"), "sleep_stopped");
   CHECK(test::check_stopped_steps(scene, 60, 1) >= 40);
 }
+
+namespace {
+
+// A tower of three affine cubes (0.14, 0.12 and 0.10 m) on the floor, 0.5 mm apart, and above the
+// top one, 0.5 mm off it, a driven plate (a tet body on a moving boundary) that slides across it
+// at 3 cm/s: the plate never rests and touches the top cube only.
+std::string tower_under_a_sliding_plate(const std::string& sleep) {
+  std::string bodies;
+  const double sizes[3] = {0.14, 0.12, 0.10};
+  double bottom = 0.0005;
+  for (double size : sizes) {
+    bodies += R"({ "box": { "size": [)" + std::to_string(size) + ", " + std::to_string(size) + ", " +
+              std::to_string(size) + R"(], "cells": [1, 1, 1] }, "material": "stone", "translate": [0, )" +
+              std::to_string(bottom + 0.5 * size) + R"(, 0] }, )";
+    bottom += size + 0.0005;
+  }
+  bodies += R"({ "box": { "size": [0.06, 0.02, 0.06], "cells": [1, 1, 1] }, "material": "rubber", "translate": [0, )" +
+            std::to_string(bottom + 0.01) + R"(, 0] })";
+  const std::string low = std::to_string(bottom - 0.001), high = std::to_string(bottom + 0.021);
+  return R"({ "gravity": [0, -9.81, 0],
+    "time": { "dt": 0.01, "steps": 60, "integrator": "implicit_euler" },
+    "solver": { "tolerance": 0.001, "max_iterations": 200, "sleep": )" + sleep + R"( },
+    "contact": { "dhat": 0.001, "friction": 0.3 },
+    "materials": { "stone": { "model": "affine", "density": 1000 },
+                   "rubber": { "model": "neohookean", "youngs": 1e6, "poisson": 0.4, "density": 1000 } },
+    "bodies": [ )" + bodies + R"( ],
+    "boundary": [ { "box_min": [-0.1, )" + low + R"(, -0.1], "box_max": [0.1, )" + high + R"(, 0.1], "body": 3,
+                    "velocity": [0.03, 0, 0] } ],
+    "obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ] })";
+}
+
+}  // namespace
+
+TEST_CASE("a body that keeps moving keeps awake only the bodies it touches, not the whole stack") {
+  // The plate touches only the top cube; the two below it rest on bodies at rest, so they sleep
+  // though the four are one contact group (a group-wide rule would keep all four awake).
+  const Scene on = test::scene_from_json(tower_under_a_sliding_plate("true"), "sleep_tower_on");
+  const Scene off = test::scene_from_json(tower_under_a_sliding_plate("false"), "sleep_tower_off");
+  Simulation sleeping(on), awake(off);
+  int both_asleep_at = -1;
+  for (int k = 1; k <= 60; ++k) {
+    CAPTURE(k);
+    step_ok(sleeping);
+    step_ok(awake);
+    CHECK(sleeping.last_stats().min_distance > 0.0);
+    const std::vector<int32_t>& group = sleeping.history().sleep_group;
+    CHECK(group[3] < 0);  // driven: never asleep
+    CHECK(group[2] < 0);  // touches the driven one
+    if (both_asleep_at < 0 && group[0] >= 0 && group[1] >= 0) both_asleep_at = k;
+    if (both_asleep_at > 0) {
+      CHECK(group[0] >= 0);  // once asleep, nothing that moves touches them
+      CHECK(group[1] >= 0);
+    }
+  }
+  REQUIRE(both_asleep_at > 10);  // the rest window after they settle
+  CHECK(both_asleep_at < 40);
+  // Every body ends where it ends with sleeping off: the sleepers were held where they rest.
+  double largest = 0.0;
+  for (size_t i = 0; i < sleeping.state().x.size(); ++i)
+    if (!on.model.axis_node(static_cast<int32_t>(i / 3)))
+      largest = std::max(largest, std::abs(sleeping.state().x[i] - awake.state().x[i]));
+  CAPTURE(largest);
+  CHECK(largest < 0.2 * kDhat);
+}
