@@ -1,6 +1,7 @@
 // The map between nodes and vertex positions (see coordinate_map.hpp).
 #include "engine/coordinate_map.hpp"
 
+#include "engine/active_subset.hpp"
 #include "engine/parallel.hpp"
 
 #include <Eigen/Dense>
@@ -207,7 +208,8 @@ void CoordinateMap::map_coupling(const std::vector<int32_t>& stencils, std::vect
 }
 
 void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
-                              const double* slabs, const MappedStencils& mapped, double* out) const {
+                              const double* slabs, const MappedStencils& mapped, double* out,
+                              const uint8_t* active) const {
   const int64_t num = static_cast<int64_t>(stencils.size() / 4);
   parallel_for(num, [&](int64_t begin, int64_t end) {
     VertexNodes vertices[4];
@@ -215,6 +217,7 @@ void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::v
     double full[9 * kMaxStencilNodes * kMaxStencilNodes];
     int positions[4];
     for (int64_t s = begin; s < end; ++s) {
+      if (!touches(&stencils[4 * s], active)) continue;
       const int64_t size = slab_begin[s + 1] - slab_begin[s];
       const int k = width_of_slab(size);
       const int K = stencil_nodes_of(&stencils[4 * s], size, vertices, nodes);

@@ -63,9 +63,11 @@ class CoordinateMap {
   // The node stencils of `stencils` for coupling alone (islands, thawing): no slab sizes.
   void map_coupling(const std::vector<int32_t>& stencils, std::vector<int32_t>& out) const;
   // out (mapped.slab_begin.back() values) = the sub-stencils' slabs of J^T H J, H the source
-  // slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped` was made from.
+  // slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped` was made from. With
+  // `active` (a vertex mask, as ActiveSubset's), only the stencils touching an active vertex: the
+  // others' sub-stencils touch no active node, and an assembly over the active columns reads none.
   void map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin, const double* slabs,
-                 const MappedStencils& mapped, double* out) const;
+                 const MappedStencils& mapped, double* out, const uint8_t* active = nullptr) const;
   // The line search's trial point, turned: each affine body whose first node is in a moving group
   // (group_of_vertex[node] >= 0) takes the step alpha = group_alpha[group] of `direction` from x
   // as a turn by exp(alpha W) after the stretch alpha E, W and E the skew and symmetric parts of

@@ -179,7 +179,8 @@ void IncrementalPotential::gradient_hessian(const double* x, double* grad, doubl
       }
       // J^T H J of the term's slabs, over the sub-stencils prepare() gave the pattern.
       mapped_slabs_[t].resize(mapped_[t].slab_begin.back());
-      map_.map_slabs(*s.stencils, *s.slab_begin, s.slabs, mapped_[t], mapped_slabs_[t].data());
+      map_.map_slabs(*s.stencils, *s.slab_begin, s.slabs, mapped_[t], mapped_slabs_[t].data(),
+                     subset ? subset->vertex_mask.data() : nullptr);
       slab_pieces_.push_back(mapped_slabs_[t].data());
       piece_begin_.push_back(begin);
       begin += mapped_[t].slab_begin.back();
