@@ -338,6 +338,7 @@ void Simulation::drop_caches() {
   newton_.reset();  // no held vertices, no cached islands: they are rebuilt as needed
   kinematic_on_target_ = false;
   held_asleep_.clear();
+  if (contact_) contact_->set_asleep({});
 }
 
 void Simulation::hold_sleeping() {
@@ -346,6 +347,7 @@ void Simulation::hold_sleeping() {
   if (asleep == held_asleep_) return;
   newton_->hold(held_asleep_, false);
   newton_->hold(asleep, true);
+  if (contact_) contact_->set_asleep(asleep);  // their pairs with each other leave the solve
   held_asleep_.swap(asleep);
 }
 

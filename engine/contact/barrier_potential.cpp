@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 
 namespace nexdyn {
@@ -48,13 +49,32 @@ BarrierPotential::BarrierPotential(const Model& model, double dhat)
 
 void BarrierPotential::find_candidates(const double* x0, const double* x1) {
   const int64_t n = model_.num_dofs();
-  // A static search at the positions of the last one (friction lags, then the solve) is a no-op.
-  if (!x1 && static_search_ && std::equal(x0, x0 + n, static_x_.begin())) return;
-  ProfileScope scope(profile_, StepPhase::broad_phase);
-  find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
-  active_.forget_pairs(candidates_);
-  static_search_ = x1 == nullptr;
-  if (static_search_) static_x_.assign(x0, x0 + n);
+  // A static search at the positions of the last one (friction lags, then the solve; the measure
+  // of the step before) is a no-op, but for the sleepers' pairs it may still hold.
+  if (!(!x1 && static_search_ && std::equal(x0, x0 + n, static_x_.begin())) &&
+      !(!x1 && !solved_.empty() && incremental_search(x0, nullptr)))
+    search_all(x0, x1);
+  if (!solved_.empty() && !dropped_) drop_unsolved_pairs(x0);
+}
+
+bool BarrierPotential::incremental_search(const double* x, const double* p) {
+  if (!covers_) return false;
+  // Moved: from where the list covers, or along p. The others' pairs are all in the list.
+  moved_.assign(model_.num_vertices, 0);
+  bool any = false;
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    for (int d = 0; d < 3; ++d) {
+      const int64_t i = 3 * int64_t{v} + d;
+      if (x[i] != cover_x_[i] || (p && p[i] != 0.0)) {
+        moved_[v] = 1;
+        any = true;
+        break;
+      }
+    }
+  if (!any) return true;
+  no_motion_.assign(model_.num_dofs(), 0.0);
+  sweep(x, p ? p : no_motion_.data(), moved_.data());
+  return true;
 }
 
 // ---- distances and energy -------------------------------------------------------------------
@@ -134,8 +154,69 @@ struct MinDistance {
 
 }  // namespace
 
+void BarrierPotential::search_all(const double* x0, const double* x1) {
+  ProfileScope scope(profile_, StepPhase::broad_phase);
+  const int64_t n = model_.num_dofs();
+  find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
+  active_.forget_pairs(candidates_);
+  static_search_ = x1 == nullptr;
+  if (static_search_) static_x_.assign(x0, x0 + n);
+  dropped_ = false;
+  dropped_energy_ = 0.0;
+  covers_ = true;
+  cover_x_.assign(x0, x0 + n);
+}
+
+void BarrierPotential::set_asleep(const std::vector<int32_t>& vertices) {
+  std::vector<uint8_t> solved;
+  if (!vertices.empty()) {
+    solved.resize(model_.num_vertices);
+    for (int32_t v = 0; v < model_.num_vertices; ++v) {
+      const int32_t id = model_.dirichlet[v];
+      solved[v] = id < 0 || model_.dirichlet_motions[id].moves();
+    }
+    for (int32_t v : vertices) solved[v] = 0;
+  }
+  if (solved == solved_) return;
+  solved_.swap(solved);
+  // Lists without the pairs of the old sleepers lack those of the ones woken now: search again.
+  if (dropped_) static_search_ = covers_ = false;
+}
+
+void BarrierPotential::drop_unsolved_pairs(const double* x) {
+  // The dropped pairs' energy, summed as energy() sums (in list order per fixed chunk), so that
+  // energy() = kept + dropped is the energy of every pair up to rounding.
+  ContactCandidates dropped;
+  auto split = [&](std::vector<IndexPair>& list, std::vector<IndexPair>& out, auto&& solved) {
+    size_t kept = 0;
+    for (const IndexPair& pr : list) {
+      if (solved(pr)) list[kept++] = pr;
+      else out.push_back(pr);
+    }
+    list.resize(kept);
+  };
+  auto any = [&](std::initializer_list<int32_t> vertices) {
+    for (int32_t v : vertices)
+      if (v >= 0 && solved_[v]) return true;
+    return false;
+  };
+  split(candidates_.vertex_triangle, dropped.vertex_triangle, [&](const IndexPair& pr) {
+    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
+    return any({pr.first, t[0], t[1], t[2]});
+  });
+  split(candidates_.edge_edge, dropped.edge_edge, [&](const IndexPair& pr) {
+    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
+    return any({ea[0], ea[1], eb[0], eb[1]});
+  });
+  split(candidates_.vertex_plane, dropped.vertex_plane, [&](const IndexPair& pr) { return any({pr.first}); });
+  active_.forget_pairs(candidates_);
+  dropped_energy_ = reduce_pairs(model_, dropped, x, dhat2_, 0.0, SumEnergy{});
+  dropped_ = true;
+}
+
 double BarrierPotential::energy(const double* x) const {
-  return reduce_pairs(model_, candidates_, x, dhat2_, 0.0, SumEnergy{});
+  return reduce_pairs(model_, candidates_, x, dhat2_, 0.0, SumEnergy{}) + dropped_energy_;
 }
 
 void BarrierPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
@@ -170,7 +251,7 @@ double BarrierPotential::min_squared_distance(const double* x) {
 
 BarrierPotential::Summary BarrierPotential::summarize(const double* x) {
   Summary summary;
-  find_candidates(x, nullptr);
+  if (!(static_search_ && !dropped_ && std::equal(x, x + model_.num_dofs(), static_x_.begin()))) search_all(x, nullptr);
   const ContactCandidates& near = candidates_;
   summary.barrier = reduce_pairs(model_, near, x, dhat2_, 0.0, SumEnergy{});
   struct CountActive {

@@ -64,9 +64,17 @@ class BarrierPotential {
   // Times the solver's candidate searches (broad phase) and CCD into `profile` (null: no timing).
   void set_profile(StepProfile* profile) { profile_ = profile; }
 
-  // Candidates for the motion x0 -> x1 (x1 = nullptr: for x0 alone).
+  // Candidates for the motion x0 -> x1 (x1 = nullptr: for x0 alone), without the pairs of
+  // sleeping bodies (set_asleep).
   void find_candidates(const double* x0, const double* x1);
   const ContactCandidates& candidates() const { return candidates_; }
+
+  // The vertices of the sleeping bodies (ids; empty: none sleep). A pair none of whose vertices
+  // is solved (free and awake, or driven by a moving boundary) has a constant energy and no
+  // gradient on the solve's unknowns while they sleep: the searches leave it out, energy() adds
+  // the energy it had, and so the pairs inside a sleeping pile cost the solve nothing (issue 40).
+  // summarize() still measures every pair, and leaves them all in candidates().
+  void set_asleep(const std::vector<int32_t>& vertices);
 
   // sum_k b(d_k(x)) over the candidates; +inf when a pair touches or crosses (d <= 0) or a vertex
   // is on or behind an obstacle plane.
@@ -145,6 +153,26 @@ class BarrierPotential {
   ContactCandidates candidates_;
   bool static_search_ = false;     // candidates_ come from find_candidates(static_x_, nullptr)
   std::vector<double> static_x_;   // (3n)
+  // set_asleep(): (num_vertices) 1 where a vertex is solved, empty when no body sleeps; whether
+  // candidates_ went without the unsolved pairs, and the energy those pairs had there.
+  std::vector<uint8_t> solved_;
+  bool dropped_ = false;
+  double dropped_energy_ = 0.0;
+  // While bodies sleep, the searches of a step start from the last one: candidates_ hold every
+  // pair within reach at cover_x_ (and maybe more, which costs nothing: a pair beyond dhat adds
+  // 0), so a search at x needs to look again only at the vertices that moved from there.
+  bool covers_ = false;
+  std::vector<double> cover_x_;      // (3n)
+  std::vector<uint8_t> moved_;       // (num_vertices) incremental_search's mask
+  std::vector<double> no_motion_;    // (3n) zeros
+  // The search for x -> x + p (p = nullptr: x alone) from the covered point; false when there is
+  // none to start from (nothing searched, or a sleeper woke since).
+  bool incremental_search(const double* x, const double* p);
+  // The full search (every pair with a free vertex) into candidates_.
+  void search_all(const double* x0, const double* x1);
+  // Takes the pairs without a solved vertex out of candidates_ (they stand at x), their energy
+  // into dropped_energy_.
+  void drop_unsolved_pairs(const double* x);
   // Each candidate's distance and closest feature (cached while its vertices stay put), and the
   // stencils of the last build_active_set().
   ContactActiveSet active_;

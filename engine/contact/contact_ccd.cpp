@@ -25,7 +25,7 @@ constexpr double kCcdGapFraction = 0.1;
 }  // namespace
 
 double BarrierPotential::max_step(const double* x, const double* p) {
-  sweep(x, p);
+  if (solved_.empty() || !incremental_search(x, p)) sweep(x, p);
   double alpha = 1.0;
   group_max_steps(x, nullptr, &alpha);
   return alpha;
@@ -40,6 +40,8 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   if (!moving) return find_candidates(x, x1_.data());
   ProfileScope broad(profile_, StepPhase::broad_phase);
   static_search_ = false;
+  // The kept pairs cover the still vertices where they are, the fresh ones the moving ones at x.
+  if (covers_) cover_x_.assign(x, x + n);
   // Pairs of vertices that stay put keep their candidates: none of them moved since the last
   // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.

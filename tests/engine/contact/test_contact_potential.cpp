@@ -2,7 +2,8 @@
 // incremental potential with barrier against finite differences of its energy, the merged sparse
 // Hessian against a dense sum of the element and contact blocks, bitwise equality for 1 and
 // 2 threads, the active set merged by closest feature against every pair on its own, and the
-// cached pair distances through masked sweeps against a fresh evaluation.
+// cached pair distances through masked sweeps against a fresh evaluation; a sleeping body's pairs
+// left out of the searches without losing their energy or any pair a full search finds.
 // (Candidates against the brute force: test_candidates.cpp.)
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/candidates.hpp"
@@ -22,6 +23,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -347,4 +349,106 @@ TEST_CASE("cached pair distances stay exact through masked sweeps that move one 
     const double rounding = 16.0 * std::numeric_limits<double>::epsilon() * std::sqrt(min_ref);
     CHECK(std::abs(contact.min_squared_distance(x.data()) - min_ref) <= 1e-12 * min_ref + rounding);
   }
+}
+
+namespace {
+
+// The pairs of `all` that have a vertex outside `asleep` (a vertex-plane pair: its vertex).
+ContactCandidates pairs_with_an_awake_vertex(const Model& model, const ContactCandidates& all,
+                                             const std::vector<uint8_t>& asleep) {
+  auto awake = [&](std::initializer_list<int32_t> vertices) {
+    return std::any_of(vertices.begin(), vertices.end(), [&](int32_t v) { return !asleep[v]; });
+  };
+  ContactCandidates out;
+  for (const IndexPair& pr : all.vertex_triangle) {
+    const int32_t* t = &model.surface_triangles[3 * int64_t{pr.second}];
+    if (awake({pr.first, t[0], t[1], t[2]})) out.vertex_triangle.push_back(pr);
+  }
+  for (const IndexPair& pr : all.edge_edge) {
+    const int32_t* a = &model.surface_edges[2 * int64_t{pr.first}];
+    const int32_t* b = &model.surface_edges[2 * int64_t{pr.second}];
+    if (awake({a[0], a[1], b[0], b[1]})) out.edge_edge.push_back(pr);
+  }
+  for (const IndexPair& pr : all.vertex_plane)
+    if (awake({pr.first})) out.vertex_plane.push_back(pr);
+  return out;
+}
+
+// Whether every pair of `sub` is in `list` (both sorted, as the searches leave them).
+bool holds_all(const ContactCandidates& list, const ContactCandidates& sub) {
+  return std::includes(list.vertex_triangle.begin(), list.vertex_triangle.end(), sub.vertex_triangle.begin(),
+                       sub.vertex_triangle.end()) &&
+         std::includes(list.edge_edge.begin(), list.edge_edge.end(), sub.edge_edge.begin(), sub.edge_edge.end()) &&
+         std::includes(list.vertex_plane.begin(), list.vertex_plane.end(), sub.vertex_plane.begin(),
+                       sub.vertex_plane.end());
+}
+
+}  // namespace
+
+TEST_CASE("the pairs of a sleeping body leave the search, its energy stays, and searches from there miss no pair") {
+  // The lower box sleeps: its pairs with the ground and its own pairs have no solved vertex. The
+  // search must keep exactly the pairs with a vertex of the upper box (against the brute force),
+  // the energy must still count the dropped ones, and the searches of the rest of the step, which
+  // look again only at what moved, must still hold every pair a full search holds.
+  const Scene scene = two_boxes();
+  const Model& model = scene.model;
+  const int64_t n = model.num_dofs();
+  std::vector<double> x = test::perturbed(model.rest_positions, 2e-3, 5);
+  const BodyRange& lower = model.bodies[0];
+  const BodyRange& upper = model.bodies[1];
+  std::vector<int32_t> asleep;
+  std::vector<uint8_t> is_asleep(model.num_vertices, 0);
+  for (int32_t v = lower.vertex_begin; v < lower.vertex_begin + lower.vertex_count; ++v) {
+    asleep.push_back(v);
+    is_asleep[v] = 1;
+  }
+  BarrierPotential contact(model, kDhat);
+  contact.set_asleep(asleep);
+  auto check_at = [&](const std::vector<double>& at, bool exact) {
+    BarrierPotential full(model, kDhat);
+    full.find_candidates(at.data(), nullptr);
+    ContactCandidates reference;
+    find_contact_candidates_brute_force(model, at.data(), nullptr, 0.5 * kDhat, reference);
+    const ContactCandidates awake = pairs_with_an_awake_vertex(model, reference, is_asleep);
+    REQUIRE(awake.size() > 0);
+    REQUIRE(awake.size() < reference.size());  // the ground's pairs and the lower box's own went
+    const ContactCandidates& kept = contact.candidates();
+    CHECK(holds_all(kept, awake));
+    CHECK(pairs_with_an_awake_vertex(model, kept, is_asleep).size() == kept.size());
+    if (exact) CHECK(kept.size() == awake.size());
+    const double energy = full.energy(at.data());
+    REQUIRE(energy > 0.0);
+    CHECK(std::abs(contact.energy(at.data()) - energy) <= 1e-12 * energy);
+  };
+  contact.find_candidates(x.data(), nullptr);
+  check_at(x, true);
+
+  // The upper box moves (it alone: the lower one is held) three times; each search starts from
+  // where the last one left off.
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  for (int move = 0; move < 3; ++move) {
+    CAPTURE(move);
+    std::vector<double> p(n, 0.0);
+    const Eigen::Vector3d shift(0.003 * uniform(rng), -0.004, 0.003 * uniform(rng));
+    for (int32_t v = upper.vertex_begin; v < upper.vertex_begin + upper.vertex_count; ++v)
+      for (int d = 0; d < 3; ++d) p[3 * v + d] = shift[d];
+    // The CCD cap of the motion: the same as with every pair searched afresh.
+    BarrierPotential full(model, kDhat);
+    const double alpha_full = full.max_step(x.data(), p.data());
+    const double alpha = contact.max_step(x.data(), p.data());
+    CHECK(alpha == alpha_full);
+    for (int64_t i = 0; i < n; ++i) x[i] += 0.5 * alpha * p[i];
+    contact.find_candidates(x.data(), nullptr);
+    check_at(x, false);
+  }
+  // No one sleeps any more: the search is the full one again.
+  contact.set_asleep({});
+  contact.find_candidates(x.data(), nullptr);
+  BarrierPotential full(model, kDhat);
+  full.find_candidates(x.data(), nullptr);
+  CHECK(contact.candidates().vertex_triangle == full.candidates().vertex_triangle);
+  CHECK(contact.candidates().edge_edge == full.candidates().edge_edge);
+  CHECK(contact.candidates().vertex_plane == full.candidates().vertex_plane);
+  CHECK(contact.energy(x.data()) == full.energy(x.data()));
 }
