@@ -119,23 +119,22 @@ PairEval eval_vertex_plane(const Model& m, const double* x, const IndexPair& pai
 
 // Reduces eval(pair) over all candidates in a fixed order: per fixed chunk of pairs with
 // reduce(acc, eval), the chunks combined in order with reduce.combine.
-template <typename Reduce>
-double reduce_pairs(const Model& m, const ContactCandidates& c, const double* x, double dhat2,
-                    double init, Reduce&& reduce) {
-  double result = init;
+template <typename T, typename Reduce>
+T reduce_pairs(const Model& m, const ContactCandidates& c, const double* x, double dhat2, T init, Reduce&& reduce) {
+  T result = init;
   auto over = [&](const std::vector<IndexPair>& pairs, auto&& eval) {
     const int64_t n = static_cast<int64_t>(pairs.size());
     const int64_t chunks = (n + kPairGrain - 1) / kPairGrain;
-    std::vector<double> partial(chunks, init);
+    std::vector<T> partial(chunks, init);
     parallel_for(chunks, [&](int64_t cb, int64_t ce) {
       for (int64_t k = cb; k < ce; ++k) {
-        double acc = init;
+        T acc = init;
         for (int64_t i = k * kPairGrain; i < std::min(n, (k + 1) * kPairGrain); ++i)
           acc = reduce(acc, eval(m, x, pairs[i], dhat2));
         partial[k] = acc;
       }
     }, 1);
-    for (double p : partial) result = reduce.combine(result, p);
+    for (const T& p : partial) result = reduce.combine(result, p);
   };
   over(c.vertex_triangle, eval_vertex_triangle);
   over(c.edge_edge, eval_edge_edge);
@@ -150,6 +149,19 @@ struct SumEnergy {
 struct MinDistance {
   double operator()(double acc, const PairEval& e) const { return std::min(acc, e.d); }
   double combine(double a, double b) const { return std::min(a, b); }
+};
+// The summary's three reductions in one pass over the pairs, each in the order it has alone.
+struct Totals {
+  double energy = 0.0, active = 0.0, min_d = kInf;
+};
+struct SumCountMin {
+  double dhat2;
+  Totals operator()(Totals acc, const PairEval& e) const {
+    return {acc.energy + e.energy, acc.active + (e.d < dhat2 ? 1.0 : 0.0), std::min(acc.min_d, e.d)};
+  }
+  Totals combine(Totals a, Totals b) const {
+    return {a.energy + b.energy, a.active + b.active, std::min(a.min_d, b.min_d)};
+  }
 };
 
 }  // namespace
@@ -252,17 +264,12 @@ double BarrierPotential::min_squared_distance(const double* x) {
 BarrierPotential::Summary BarrierPotential::summarize(const double* x) {
   Summary summary;
   if (!(static_search_ && !dropped_ && std::equal(x, x + model_.num_dofs(), static_x_.begin()))) search_all(x, nullptr);
-  const ContactCandidates& near = candidates_;
-  summary.barrier = reduce_pairs(model_, near, x, dhat2_, 0.0, SumEnergy{});
-  struct CountActive {
-    double dhat2;
-    double operator()(double acc, const PairEval& e) const { return acc + (e.d < dhat2 ? 1.0 : 0.0); }
-    double combine(double a, double b) const { return a + b; }
-  };
-  summary.active = static_cast<int64_t>(reduce_pairs(model_, near, x, dhat2_, 0.0, CountActive{dhat2_}));
+  const Totals totals = reduce_pairs(model_, candidates_, x, dhat2_, Totals{}, SumCountMin{dhat2_});
+  summary.barrier = totals.energy;
+  summary.active = static_cast<int64_t>(totals.active);
 
   // Boxes inflated by r overlap for every pair closer than 2 r: a minimum below (2 r)^2 is exact.
-  double min_d = reduce_pairs(model_, near, x, dhat2_, kInf, MinDistance{});
+  double min_d = totals.min_d;
   const double limit = 4.0 * bodies_bbox_diagonal(model_) + dhat_;
   ContactCandidates far;
   for (double r = 0.5 * dhat_; min_d > 4.0 * r * r && r < limit;) {
