@@ -145,7 +145,7 @@ StepOutcome Simulation::step() {
   {
     ProfileScope scope(&profile_, StepPhase::measure);
     measure_step(stats_);
-    // Rest counts and sleeping groups, from the contact candidates the measure left at x.
+    // Rest counts and sleepers, from the contact candidates the measure left at x.
     if (sleeping_) {
       sleeping_->update(state_, contact_->candidates(), scene_.time.dt);
       stats_.sleeping_bodies = sleeping_->num_sleeping();

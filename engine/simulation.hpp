@@ -84,7 +84,7 @@ class Simulation {
   // A scripted kick between steps: every free vertex's velocity from `v` (3 x num_vertices); held
   // vertices keep their prescribed ones, and an affine body takes the affine motion closest to
   // its surface vertices' velocities (exact for a rigid one; its nodes' rows are not read).
-  // A sleeping group one of whose bodies now moves wakes. The kinetic energy it adds is outside the energy balance: the next step's balance
+  // A sleeping body that now moves wakes. The kinetic energy it adds is outside the energy balance: the next step's balance
   // starts from the kicked state (total_energy jumps by it between the two rows).
   void set_velocities(const double* v);
   int64_t num_joints() const { return joints_.size(); }

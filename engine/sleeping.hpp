@@ -57,10 +57,10 @@ class SleepingBodies {
   // every body awake and its rest beginning at state.x.
   void adopt(const State& state);
 
-  // After a scripted change of velocities: wakes every sleeping group one of whose bodies now
-  // has a vertex moving.
+  // After a scripted change of velocities: wakes every sleeper that now has a vertex moving
+  // (with the rest of its sleeping group, in an older build's checkpoint).
   void wake_moving(const State& state);
-  // Before a step of length dt: wakes the sleeping groups an awake body's motion may reach.
+  // Before a step of length dt: wakes the sleepers a fast awake body's motion may reach.
   void wake_near_motion(const State& state, double dt);
   // After a step (with candidates: the contact candidates at state.x, within dhat): counts the
   // steps at rest, then puts ready bodies to sleep (their v = 0) and wakes the pushed ones.
