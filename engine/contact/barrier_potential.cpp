@@ -59,13 +59,17 @@ void BarrierPotential::find_candidates(const double* x0, const double* x1) {
 
 bool BarrierPotential::incremental_search(const double* x, const double* p) {
   if (!covers_) return false;
-  // Moved: from where the list covers, or along p. The others' pairs are all in the list.
+  // Moved: from where the list covers, or along p. The others' pairs are all in the list. A
+  // moved held vertex (a boundary carried to its target) sends the search back to the full one:
+  // the masked search takes its mask for the free vertices, and would pair a held vertex with
+  // the fixed obstacles, which the full search never does.
   moved_.assign(model_.num_vertices, 0);
   bool any = false;
   for (int32_t v = 0; v < model_.num_vertices; ++v)
     for (int d = 0; d < 3; ++d) {
       const int64_t i = 3 * int64_t{v} + d;
       if (x[i] != cover_x_[i] || (p && p[i] != 0.0)) {
+        if (model_.dirichlet[v] >= 0) return false;
         moved_[v] = 1;
         any = true;
         break;
