@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <initializer_list>
 #include <utility>
 
 namespace nexdyn {
@@ -103,22 +102,17 @@ void SleepingBodies::wake_near_motion(const State& state, double dt) {
   if (!any_awake) return;
   find_contact_candidates(model_, state.x.data(), end.data(), 0.5 * dhat_, reached_, awake.data());
   std::vector<int32_t> woken;  // sleeping groups a moving vertex comes near
-  auto reach = [&](std::initializer_list<int32_t> vertices) {
-    bool moving = false;
-    for (int32_t v : vertices) moving = moving || awake[v];
-    if (!moving) return;
-    for (int32_t v : vertices)
-      if (const int32_t g = group[model_.vertex_body[v]]; g >= 0) woken.push_back(g);
-  };
-  for (const IndexPair& pr : reached_.vertex_triangle) {
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-    reach({pr.first, t[0], t[1], t[2]});
-  }
-  for (const IndexPair& pr : reached_.edge_edge) {
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-    reach({ea[0], ea[1], eb[0], eb[1]});
-  }
+  for_each_pair_list(model_, [&](auto list, auto&& vertices_of) {
+    for (const IndexPair& pr : reached_.*list) {
+      const PairVertices vertices = vertices_of(pr);
+      bool moving = false;
+      for (int32_t v : vertices) moving = moving || (v >= 0 && awake[v]);
+      if (!moving) continue;
+      for (int32_t v : vertices)
+        if (v >= 0)
+          if (const int32_t g = group[model_.vertex_body[v]]; g >= 0) woken.push_back(g);
+    }
+  });
   // A woken body does not move yet (v = 0), so it wakes no one else this step.
   wake_groups(woken, state);
 }
@@ -159,10 +153,14 @@ void SleepingBodies::update(State& state, const ContactCandidates& candidates, d
     links.emplace_back(a, b);
     links.emplace_back(b, a);
   };
-  for (const IndexPair& pr : candidates.vertex_triangle)
-    link(pr.first, model_.surface_triangles[3 * int64_t{pr.second}]);
-  for (const IndexPair& pr : candidates.edge_edge)
-    link(model_.surface_edges[2 * int64_t{pr.first}], model_.surface_edges[2 * int64_t{pr.second}]);
+  for (const IndexPair& pr : candidates.vertex_triangle) {
+    const PairVertices v = vertex_triangle_vertices(model_, pr);
+    link(v[0], v[1]);  // the vertex's body and the triangle's
+  }
+  for (const IndexPair& pr : candidates.edge_edge) {
+    const PairVertices v = edge_edge_vertices(model_, pr);
+    link(v[0], v[2]);  // the two edges' bodies
+  }
   for (const Joint& joint : model_.joints)
     for (int k = 1; k < joint.count; ++k) link(joint.vertex[0], joint.vertex[k]);
   // Ready: at rest for the whole window, or asleep. Moving: awake and not still this step, or

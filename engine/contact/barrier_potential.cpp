@@ -14,7 +14,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <initializer_list>
 #include <limits>
 
 namespace nexdyn {
@@ -203,29 +202,20 @@ void BarrierPotential::drop_unsolved_pairs(const double* x) {
   // The dropped pairs' energy, summed as energy() sums (in list order per fixed chunk), so that
   // energy() = kept + dropped is the energy of every pair up to rounding.
   ContactCandidates dropped;
-  auto split = [&](std::vector<IndexPair>& list, std::vector<IndexPair>& out, auto&& solved) {
-    size_t kept = 0;
-    for (const IndexPair& pr : list) {
-      if (solved(pr)) list[kept++] = pr;
-      else out.push_back(pr);
-    }
-    list.resize(kept);
-  };
-  auto any = [&](std::initializer_list<int32_t> vertices) {
+  auto solved = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
       if (v >= 0 && solved_[v]) return true;
     return false;
   };
-  split(candidates_.vertex_triangle, dropped.vertex_triangle, [&](const IndexPair& pr) {
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-    return any({pr.first, t[0], t[1], t[2]});
+  for_each_pair_list(model_, [&](auto list, auto&& vertices_of) {
+    std::vector<IndexPair>& pairs = candidates_.*list;
+    size_t kept = 0;
+    for (const IndexPair& pr : pairs) {
+      if (solved(vertices_of(pr))) pairs[kept++] = pr;
+      else (dropped.*list).push_back(pr);
+    }
+    pairs.resize(kept);
   });
-  split(candidates_.edge_edge, dropped.edge_edge, [&](const IndexPair& pr) {
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-    return any({ea[0], ea[1], eb[0], eb[1]});
-  });
-  split(candidates_.vertex_plane, dropped.vertex_plane, [&](const IndexPair& pr) { return any({pr.first}); });
   active_.forget_pairs(candidates_);
   dropped_energy_ = reduce_pairs(model_, dropped, x, dhat2_, 0.0, SumEnergy{});
   dropped_ = true;
@@ -236,29 +226,27 @@ double BarrierPotential::energy(const double* x) const {
 }
 
 void BarrierPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
-  auto first_group = [&](std::initializer_list<int32_t> vertices) {
+  // A pair's group: that of its first moving vertex (all its moving vertices share one).
+  auto first_group = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
-      if (group_of_vertex[v] >= 0) return group_of_vertex[v];
+      if (v >= 0 && group_of_vertex[v] >= 0) return group_of_vertex[v];
     return -1;
   };
-  auto over = [&](const std::vector<IndexPair>& pairs, auto&& group_of, auto&& eval) {
-    grouped_sum(static_cast<int64_t>(pairs.size()), kPairGrain, group_of, [&](int64_t b, int64_t e) {
-      double sum = 0.0;
-      for (int64_t i = b; i < e; ++i) sum += eval(model_, x, pairs[i], dhat2_).energy;
-      return sum;
-    }, total);
+  auto over = [&](const std::vector<IndexPair>& pairs, auto&& vertices_of, auto&& eval) {
+    grouped_sum(static_cast<int64_t>(pairs.size()), kPairGrain,
+                [&](int64_t i) { return first_group(vertices_of(pairs[i])); },
+                [&](int64_t b, int64_t e) {
+                  double sum = 0.0;
+                  for (int64_t i = b; i < e; ++i) sum += eval(model_, x, pairs[i], dhat2_).energy;
+                  return sum;
+                },
+                total);
   };
   const ContactCandidates& c = candidates_;
-  over(c.vertex_triangle, [&](int64_t i) {
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{c.vertex_triangle[i].second}];
-    return first_group({c.vertex_triangle[i].first, t[0], t[1], t[2]});
-  }, eval_vertex_triangle);
-  over(c.edge_edge, [&](int64_t i) {
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{c.edge_edge[i].first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{c.edge_edge[i].second}];
-    return first_group({ea[0], ea[1], eb[0], eb[1]});
-  }, eval_edge_edge);
-  over(c.vertex_plane, [&](int64_t i) { return first_group({c.vertex_plane[i].first}); }, eval_vertex_plane);
+  over(c.vertex_triangle, [&](const IndexPair& pr) { return vertex_triangle_vertices(model_, pr); },
+       eval_vertex_triangle);
+  over(c.edge_edge, [&](const IndexPair& pr) { return edge_edge_vertices(model_, pr); }, eval_edge_edge);
+  over(c.vertex_plane, vertex_plane_vertices, eval_vertex_plane);
 }
 
 double BarrierPotential::min_squared_distance(const double* x) {

@@ -23,6 +23,7 @@
 #include "bvh/broad_phase.hpp"
 #include "engine/model.hpp"
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -42,6 +43,31 @@ struct ContactCandidates {
     vertex_plane.clear();
   }
 };
+
+// The vertex ids of a pair, in the order of its barrier stencil (kernels/barrier/barrier_stencils.hpp):
+// vertex-triangle p, t0, t1, t2; edge-edge ea0, ea1, eb0, eb1; vertex-plane v, then -1s.
+using PairVertices = std::array<int32_t, 4>;
+
+inline PairVertices vertex_triangle_vertices(const Model& m, const IndexPair& pair) {
+  const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
+  return {pair.first, t[0], t[1], t[2]};
+}
+inline PairVertices edge_edge_vertices(const Model& m, const IndexPair& pair) {
+  const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
+  const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
+  return {ea[0], ea[1], eb[0], eb[1]};
+}
+inline PairVertices vertex_plane_vertices(const IndexPair& pair) { return {pair.first, -1, -1, -1}; }
+
+// Calls f(list, vertices_of) for the three lists in order: `list` a pointer to the member of
+// ContactCandidates (so that one call can walk the same list of several sets of candidates),
+// vertices_of(pair) the pair's PairVertices.
+template <typename F>
+void for_each_pair_list(const Model& m, F&& f) {
+  f(&ContactCandidates::vertex_triangle, [&m](const IndexPair& pair) { return vertex_triangle_vertices(m, pair); });
+  f(&ContactCandidates::edge_edge, [&m](const IndexPair& pair) { return edge_edge_vertices(m, pair); });
+  f(&ContactCandidates::vertex_plane, [](const IndexPair& pair) { return vertex_plane_vertices(pair); });
+}
 
 // Every non-adjacent pair with a free vertex, not both of one affine body (they keep their
 // distance), that may come closer than 2 * inflation along

@@ -9,7 +9,6 @@
 #include "kernels/ccd/ccd.hpp"
 
 #include <algorithm>
-#include <initializer_list>
 
 namespace nexdyn {
 
@@ -46,9 +45,9 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.
   find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving);
-  auto still = [&](std::initializer_list<int32_t> vertices) {
+  auto still = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
-      if (moving[v]) return false;
+      if (v >= 0 && moving[v]) return false;
     return true;
   };
   // Each list becomes its kept pairs merged with the fresh ones; origin_ records where each
@@ -57,11 +56,13 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   const int64_t old_size = candidates_.size();
   origin_.clear();
   int64_t old_base = 0;
-  auto update = [&](std::vector<IndexPair>& list, const std::vector<IndexPair>& fresh, auto&& keep) {
+  for_each_pair_list(model_, [&](auto member, auto&& vertices_of) {
+    std::vector<IndexPair>& list = candidates_.*member;
+    const std::vector<IndexPair>& fresh = fresh_.*member;
     kept_.clear();
     kept_index_.clear();
     for (size_t i = 0; i < list.size(); ++i)
-      if (keep(list[i])) {
+      if (still(vertices_of(list[i]))) {
         kept_.push_back(list[i]);
         kept_index_.push_back(old_base + static_cast<int64_t>(i));
       }
@@ -77,18 +78,7 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
         out = fresh[b++];
       }
     }
-  };
-  update(candidates_.vertex_triangle, fresh_.vertex_triangle, [&](const IndexPair& pr) {
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-    return still({pr.first, t[0], t[1], t[2]});
   });
-  update(candidates_.edge_edge, fresh_.edge_edge, [&](const IndexPair& pr) {
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-    return still({ea[0], ea[1], eb[0], eb[1]});
-  });
-  update(candidates_.vertex_plane, fresh_.vertex_plane,
-         [&](const IndexPair& pr) { return still({pr.first}); });
   active_.carry_pairs(old_size, origin_);
 }
 
@@ -99,10 +89,10 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
   const ContactCandidates& c = candidates_;
   // The group a pair belongs to: that of its first moving vertex (all its moving vertices share
   // one, by the caller's promise); -1 when none of them moves.
-  auto group_of = [&](std::initializer_list<int32_t> vertices) {
+  auto group_of = [&](const PairVertices& vertices) {
     if (!group_of_vertex) return 0;
     for (int32_t v : vertices)
-      if (group_of_vertex[v] >= 0) return group_of_vertex[v];
+      if (v >= 0 && group_of_vertex[v] >= 0) return group_of_vertex[v];
     return -1;
   };
 
@@ -131,31 +121,23 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
       for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
   };
   earliest(static_cast<int64_t>(c.vertex_triangle.size()), [&](int64_t i) {
-    const IndexPair& pr = c.vertex_triangle[i];
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-    return group_of({pr.first, t[0], t[1], t[2]});
+    return group_of(vertex_triangle_vertices(model_, c.vertex_triangle[i]));
   }, [&](int64_t i, double tmax, double& toi) {
-    const IndexPair& pr = c.vertex_triangle[i];
-    const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-    return point_triangle_ccd(point(x, pr.first), point(x, t[0]), point(x, t[1]), point(x, t[2]),
-                              point(y, pr.first), point(y, t[0]), point(y, t[1]), point(y, t[2]),
+    const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
+    return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
+                              point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
   });
   earliest(static_cast<int64_t>(c.edge_edge.size()), [&](int64_t i) {
-    const IndexPair& pr = c.edge_edge[i];
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-    return group_of({ea[0], ea[1], eb[0], eb[1]});
+    return group_of(edge_edge_vertices(model_, c.edge_edge[i]));
   }, [&](int64_t i, double tmax, double& toi) {
-    const IndexPair& pr = c.edge_edge[i];
-    const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-    const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-    return edge_edge_ccd(point(x, ea[0]), point(x, ea[1]), point(x, eb[0]), point(x, eb[1]),
-                         point(y, ea[0]), point(y, ea[1]), point(y, eb[0]), point(y, eb[1]),
+    const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i]);
+    return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
+                         point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);
   });
   earliest(static_cast<int64_t>(c.vertex_plane.size()), [&](int64_t i) {
-    return group_of({c.vertex_plane[i].first});
+    return group_of(vertex_plane_vertices(c.vertex_plane[i]));
   }, [&](int64_t i, double tmax, double& toi) {
     const IndexPair& pr = c.vertex_plane[i];
     const ObstaclePlane& plane = model_.obstacle_planes[pr.second];

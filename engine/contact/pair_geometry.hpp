@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cstdint>
 
 namespace nexdyn::pair_geometry {
@@ -34,25 +35,15 @@ inline double vertex_plane_squared_distance(const Model& m, const double* x, con
   return s > 0.0 ? s * s : 0.0;
 }
 
-// The vertex ids of candidate i of the concatenated lists (vertex-triangle, then edge-edge, then
-// vertex-plane): vertex-triangle p, t0, t1, t2; edge-edge ea0, ea1, eb0, eb1; vertex-plane v, then
-// -1s. The order is that of the stencils (kernels/barrier/barrier_stencils.hpp).
+// The PairVertices (candidates.hpp) of candidate i of the concatenated lists (vertex-triangle,
+// then edge-edge, then vertex-plane).
 inline void candidate_vertices(const Model& m, const ContactCandidates& c, int64_t i, int32_t (&s)[4]) {
   const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
-  if (i < nvt) {
-    const IndexPair& pair = c.vertex_triangle[i];
-    const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
-    s[0] = pair.first; s[1] = t[0]; s[2] = t[1]; s[3] = t[2];
-  } else if (i < nvt + nee) {
-    const IndexPair& pair = c.edge_edge[i - nvt];
-    const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
-    const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
-    s[0] = ea[0]; s[1] = ea[1]; s[2] = eb[0]; s[3] = eb[1];
-  } else {
-    s[0] = c.vertex_plane[i - nvt - nee].first;
-    s[1] = s[2] = s[3] = -1;
-  }
+  const PairVertices v = i < nvt         ? vertex_triangle_vertices(m, c.vertex_triangle[i])
+                         : i < nvt + nee ? edge_edge_vertices(m, c.edge_edge[i - nvt])
+                                         : vertex_plane_vertices(c.vertex_plane[i - nvt - nee]);
+  std::copy(v.begin(), v.end(), s);
 }
 
 }  // namespace nexdyn::pair_geometry

@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <initializer_list>
 #include <iterator>
 #include <stdexcept>
 
@@ -367,26 +366,20 @@ int32_t NewtonSolver::build_groups(const double* x) {
   groups_.reset(num_islands);
   if (const ContactCandidates* c = potential_.sweep_candidates()) {
     const std::vector<int32_t>& island_of = islands_.island_of_vertex();
-    auto join = [&](std::initializer_list<int32_t> vertices) {
-      int32_t first = -1;
-      for (int32_t v : vertices) {
-        // A follower is in its body's island (that of its nodes).
-        const int32_t node = model_.follows_body(v) ? model_.affine_bodies[model_.follows[v]].node : v;
-        const int32_t i = island_of[node];
-        if (i < 0 || !island_moves_[i]) continue;
-        if (first < 0) first = i;
-        else groups_.join(first, i);
+    for_each_pair_list(model_, [&](auto list, auto&& vertices_of) {
+      for (const IndexPair& pr : (*c).*list) {
+        int32_t first = -1;
+        for (int32_t v : vertices_of(pr)) {
+          if (v < 0) continue;
+          // A follower is in its body's island (that of its nodes).
+          const int32_t node = model_.follows_body(v) ? model_.affine_bodies[model_.follows[v]].node : v;
+          const int32_t i = island_of[node];
+          if (i < 0 || !island_moves_[i]) continue;
+          if (first < 0) first = i;
+          else groups_.join(first, i);
+        }
       }
-    };
-    for (const IndexPair& pr : c->vertex_triangle) {
-      const int32_t* t = &model_.surface_triangles[3 * int64_t{pr.second}];
-      join({pr.first, t[0], t[1], t[2]});
-    }
-    for (const IndexPair& pr : c->edge_edge) {
-      const int32_t* ea = &model_.surface_edges[2 * int64_t{pr.first}];
-      const int32_t* eb = &model_.surface_edges[2 * int64_t{pr.second}];
-      join({ea[0], ea[1], eb[0], eb[1]});
-    }
+    });
   }
   int32_t num_groups = 0;
   group_of_island_.assign(num_islands, -1);
