@@ -102,17 +102,16 @@ void SleepingBodies::wake_near_motion(const State& state, double dt) {
   if (!any_awake) return;
   find_contact_candidates(model_, state.x.data(), end.data(), 0.5 * dhat_, reached_, awake.data());
   std::vector<int32_t> woken;  // sleeping groups a moving vertex comes near
-  for_each_pair_list(model_, [&](auto list, auto&& vertices_of) {
-    for (const IndexPair& pr : reached_.*list) {
-      const PairVertices vertices = vertices_of(pr);
-      bool moving = false;
-      for (int32_t v : vertices) moving = moving || (v >= 0 && awake[v]);
-      if (!moving) continue;
-      for (int32_t v : vertices)
-        if (v >= 0)
-          if (const int32_t g = group[model_.vertex_body[v]]; g >= 0) woken.push_back(g);
-    }
-  });
+  auto reach = [&](const PairVertices& vertices) {
+    bool moving = false;
+    for (int32_t v : vertices) moving = moving || awake[v];
+    if (!moving) return;
+    for (int32_t v : vertices)
+      if (const int32_t g = group[model_.vertex_body[v]]; g >= 0) woken.push_back(g);
+  };
+  // A vertex-plane pair reaches no body.
+  for (const IndexPair& pr : reached_.vertex_triangle) reach(vertex_triangle_vertices(model_, pr));
+  for (const IndexPair& pr : reached_.edge_edge) reach(edge_edge_vertices(model_, pr));
   // A woken body does not move yet (v = 0), so it wakes no one else this step.
   wake_groups(woken, state);
 }

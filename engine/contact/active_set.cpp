@@ -105,8 +105,7 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
 
   parallel_for(num_chunks(num), [&](int64_t cb, int64_t ce) {
     for (int64_t i = cb * kCandidateChunk; i < std::min(num, ce * kCandidateChunk); ++i) {
-      int32_t s[4];
-      candidate_vertices(model_, c, i, s);
+      const PairVertices s = candidate_vertices(model_, c, i);
       if (known_[i] && !vertex_changed_[s[0]] && (s[1] < 0 || !(vertex_changed_[s[1]] |
           vertex_changed_[s[2]] | vertex_changed_[s[3]])))
         continue;
@@ -211,8 +210,7 @@ void ContactActiveSet::list_unique_and_features(const ContactCandidates& c) {
           multiplicity_[unique++] = 1;
           continue;
         }
-        int32_t s[4];
-        candidate_vertices(model_, c, i, s);
+        const PairVertices s = candidate_vertices(model_, c, i);
         if (mergeable(i, nvt, nee, code)) {
           const ClosestFeature f = feature_of_code(i, nvt, code);
           const int32_t p = s[f.idx[0]], q = s[f.idx[1]];
@@ -223,7 +221,7 @@ void ContactActiveSet::list_unique_and_features(const ContactCandidates& c) {
         kind_[unique] = i < nvt ? ContactStencilKind::point_triangle
                                 : ((code & kMollifiedCode) ? ContactStencilKind::edge_edge_mollified
                                                            : ContactStencilKind::edge_edge);
-        std::copy(s, s + 4, &vertices_[4 * unique]);
+        std::copy(s.begin(), s.end(), &vertices_[4 * unique]);
         edge_edge_case_[unique] = i < nvt ? 0 : static_cast<uint8_t>((code & ~kMollifiedCode) - 1);
         multiplicity_[unique++] = 1;
       }

@@ -10,7 +10,6 @@
 
 #include <Eigen/Core>
 
-#include <algorithm>
 #include <cstdint>
 
 namespace nexdyn::pair_geometry {
@@ -37,13 +36,12 @@ inline double vertex_plane_squared_distance(const Model& m, const double* x, con
 
 // The PairVertices (candidates.hpp) of candidate i of the concatenated lists (vertex-triangle,
 // then edge-edge, then vertex-plane).
-inline void candidate_vertices(const Model& m, const ContactCandidates& c, int64_t i, int32_t (&s)[4]) {
+inline PairVertices candidate_vertices(const Model& m, const ContactCandidates& c, int64_t i) {
   const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
-  const PairVertices v = i < nvt         ? vertex_triangle_vertices(m, c.vertex_triangle[i])
-                         : i < nvt + nee ? edge_edge_vertices(m, c.edge_edge[i - nvt])
-                                         : vertex_plane_vertices(c.vertex_plane[i - nvt - nee]);
-  std::copy(v.begin(), v.end(), s);
+  if (i < nvt) return vertex_triangle_vertices(m, c.vertex_triangle[i]);
+  if (i < nvt + nee) return edge_edge_vertices(m, c.edge_edge[i - nvt]);
+  return vertex_plane_vertices(c.vertex_plane[i - nvt - nee]);
 }
 
 }  // namespace nexdyn::pair_geometry

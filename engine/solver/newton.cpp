@@ -366,20 +366,20 @@ int32_t NewtonSolver::build_groups(const double* x) {
   groups_.reset(num_islands);
   if (const ContactCandidates* c = potential_.sweep_candidates()) {
     const std::vector<int32_t>& island_of = islands_.island_of_vertex();
-    for_each_pair_list(model_, [&](auto list, auto&& vertices_of) {
-      for (const IndexPair& pr : (*c).*list) {
-        int32_t first = -1;
-        for (int32_t v : vertices_of(pr)) {
-          if (v < 0) continue;
-          // A follower is in its body's island (that of its nodes).
-          const int32_t node = model_.follows_body(v) ? model_.affine_bodies[model_.follows[v]].node : v;
-          const int32_t i = island_of[node];
-          if (i < 0 || !island_moves_[i]) continue;
-          if (first < 0) first = i;
-          else groups_.join(first, i);
-        }
+    auto join = [&](const PairVertices& vertices) {
+      int32_t first = -1;
+      for (int32_t v : vertices) {
+        // A follower is in its body's island (that of its nodes).
+        const int32_t node = model_.follows_body(v) ? model_.affine_bodies[model_.follows[v]].node : v;
+        const int32_t i = island_of[node];
+        if (i < 0 || !island_moves_[i]) continue;
+        if (first < 0) first = i;
+        else groups_.join(first, i);
       }
-    });
+    };
+    // A vertex-plane pair has one vertex: it joins nothing.
+    for (const IndexPair& pr : c->vertex_triangle) join(vertex_triangle_vertices(model_, pr));
+    for (const IndexPair& pr : c->edge_edge) join(edge_edge_vertices(model_, pr));
   }
   int32_t num_groups = 0;
   group_of_island_.assign(num_islands, -1);
