@@ -62,7 +62,19 @@ void FrictionPotential::clear() {
   stencils_.clear();
   start_.clear();
   slab_begin_.assign(1, 0);
+  last_slip_.clear();
+  majorized_.clear();
   total_normal_force_ = 0.0;
+}
+
+bool FrictionPotential::track_slip(int64_t k, const Eigen::Vector2d& u) {
+  double* last = &last_slip_[2 * k];
+  const double last_squared = last[0] * last[0] + last[1] * last[1];
+  if (u.x() * last[0] + u.y() * last[1] < 0.0) majorized_[k] = 1;    // reversed: it may stick
+  else if (u.squaredNorm() > last_squared) majorized_[k] = 0;         // growing: it slides
+  last[0] = u.x();
+  last[1] = u.y();
+  return majorized_[k];
 }
 
 void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, double kappa,
@@ -79,6 +91,8 @@ void FrictionPotential::lag(const BarrierPotential& barrier, const double* x, do
   const std::vector<int32_t>& real = barrier.stencil_vertices();
   const std::vector<int32_t>& multiplicity = barrier.multiplicities();
   basis_.resize(num);
+  last_slip_.assign(2 * num, 0.0);
+  majorized_.assign(num, 0);
   mu_.resize(num);
   normal_force_.resize(num);
   vertices_.assign(4 * num, -1);
@@ -251,7 +265,8 @@ void FrictionPotential::compute_derivatives(const double* x, double weight, bool
       Eigen::Map<Vector12d>{&gradients_[12 * k]} =
           weight * friction_gradient(basis_[k], dx, mu_[k], normal_force_[k], eps_u_);
       if (!with_hessian) continue;
-      const Matrix12d H = weight * friction_hessian(basis_[k], dx, mu_[k], normal_force_[k], eps_u_);
+      const bool majorize = track_slip(k, tangential_displacement(basis_[k], dx));
+      const Matrix12d H = weight * friction_hessian(basis_[k], dx, mu_[k], normal_force_[k], eps_u_, majorize);
       const int size = 3 * basis_[k].num_points;
       double* slab = &hessians_[slab_begin_[k]];
       for (int c = 0; c < size; ++c)

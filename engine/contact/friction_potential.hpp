@@ -75,6 +75,15 @@ class FrictionPotential {
   double energy(const double* x) const;
   // Derivatives of weight * D at x; layout as BarrierPotential's (stencils, slab_begin), and as
   // there only the stencils with an `active` vertex when given.
+  //
+  // The Hessian is exact, except at contacts whose slip has reversed: while a contact slides, D
+  // is linear along the slip and its Hessian zero there, so a Newton step that should bring the
+  // slip to rest carries it across u = 0 and the line search halves the step of the contact's
+  // whole group, iteration after iteration (docs/performance.md, "Friction that reverses"). A
+  // stencil whose slip u points against the one at the iterate before (within this lag) takes
+  // the majorized Hessian (friction_hessian, kernels/friction/friction.hpp), whose steps reach the
+  // kink without crossing it, until its slip grows again (it slides after all). Called with
+  // with_hessian once per Newton iterate: it updates that memory.
   void compute_derivatives(const double* x, double weight, bool with_hessian,
                            const uint8_t* active = nullptr);
   void add_gradient(double* grad) const;
@@ -86,6 +95,8 @@ class FrictionPotential {
 
  private:
   Vector12d displacement(const double* x, int64_t k) const;
+  // Whether stencil k takes the majorized Hessian at slip u, which becomes its last slip.
+  bool track_slip(int64_t k, const Eigen::Vector2d& u);
 
   // Material slot of a vertex's body, or of obstacle plane `plane`, in table_.
   int32_t vertex_material(int32_t v) const;
@@ -112,6 +123,10 @@ class FrictionPotential {
   std::vector<int64_t> slab_begin_;      // (num + 1)
   std::vector<double> gradients_;        // (num x 12)
   std::vector<double> hessians_;         // (slab_begin_.back())
+  // Slip reversals (compute_derivatives): each stencil's slip at the last iterate whose Hessian
+  // it took, and whether it takes the majorized Hessian. Reset by lag().
+  std::vector<double> last_slip_;        // (num x 2) u at that iterate [m]
+  std::vector<uint8_t> majorized_;       // (num)
 };
 
 }  // namespace nexdyn

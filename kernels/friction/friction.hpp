@@ -402,14 +402,22 @@ inline Vector12d friction_force(const FrictionBasis& f, const Vector12d& dx, con
 // u_hat = u / y and g(y) / y across it, each clamped at 0 (with one coefficient both are >= 0
 // and the clamp only removes rounding; with mu_k < mu_s, g' < 0 in the transition). y = 0:
 // (2 mu_s / eps_u) I.
+//
+// majorize: g(y) / y along u_hat too (the larger of it and g'), i.e. (g(y) / y) I. While a
+// contact slides, g' = 0: D grows linearly along the slip and the exact model does not see the
+// kink at u = 0, so a Newton step that should bring the slip to rest carries it across. The
+// quadratic with curvature g(y) / y in every direction lies on or above lambda F0 wherever
+// g(y) / y does not increase with y (one coefficient, or mu_k <= mu_s): it touches D at u, and
+// its minimum along any line is no further than the kink (the half-quadratic bound of iteratively
+// reweighted least squares). FrictionPotential uses it for contacts whose slip has reversed.
 inline Eigen::Matrix2d friction_tangent_hessian(const Eigen::Vector2d& u, const FrictionCoefficients& c,
-                                                double eps_u) {
+                                                double eps_u, bool majorize = false) {
   const double y = u.norm();
   const FrictionMagnitude g = friction_magnitude(y, c, eps_u);
   const double across = std::max(0.0, g.over_y);
   Eigen::Matrix2d M = across * Eigen::Matrix2d::Identity();
   if (y > 0.0) {
-    const double along = std::max(0.0, g.derivative);
+    const double along = majorize ? std::max(g.derivative, across) : std::max(0.0, g.derivative);
     const Eigen::Vector2d u_hat = u / y;
     M.noalias() += (along - across) * (u_hat * u_hat.transpose());
   }
@@ -419,8 +427,8 @@ inline Eigen::Matrix2d friction_tangent_hessian(const Eigen::Vector2d& u, const 
 // hess D = lambda T M T^T, built as 3 x 3 blocks w_i w_j (lambda P M P^T): exact where g' >= 0
 // (T is constant) and PSD (M is). Zero past 3 n.
 inline Matrix12d friction_hessian(const FrictionBasis& f, const Vector12d& dx, const FrictionCoefficients& c,
-                                  double lambda, double eps_u) {
-  const Eigen::Matrix2d M = friction_tangent_hessian(tangential_displacement(f, dx), c, eps_u);
+                                  double lambda, double eps_u, bool majorize = false) {
+  const Eigen::Matrix2d M = friction_tangent_hessian(tangential_displacement(f, dx), c, eps_u, majorize);
   Eigen::Matrix3d A = lambda * (f.P * M * f.P.transpose());
   // Exactly symmetric, so that the assembled matrix is too (CHOLMOD reads one triangle).
   A = 0.5 * (A + A.transpose()).eval();

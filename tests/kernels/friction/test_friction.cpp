@@ -569,6 +569,45 @@ TEST_CASE("friction: closed-form 2x2 Hessian is PSD with eigenvalues f1 prime an
   }
 }
 
+TEST_CASE("friction: the majorized Hessian's quadratic lies above the energy, the exact one's not across the kink") {
+  // q(d) = D(dx) + grad D . d + d^T H d / 2 with the majorized H bounds D(dx + d) from above for
+  // every d (one coefficient and mu_s > mu_k alike); with the exact H (0 along a sliding slip),
+  // the step that carries the slip to its mirror image -u is predicted to gain 2 mu lambda |u|
+  // that it does not.
+  std::mt19937_64 rng(23);
+  const double eps_u = 1e-4, lambda = 3.0;
+  for (const FrictionCoefficients c : {FrictionCoefficients{0.4, 0.4}, FrictionCoefficients{0.5, 0.3}}) {
+    for (FrictionStencil kind : kKinds) {
+      const std::string name = kind_name(kind);
+      CAPTURE(name);
+      for (int trial = 0; trial < 60; ++trial) {
+        const Contact contact = make_contact(kind, rng);
+        const FrictionBasis f = basis_of(contact);
+        const double y = eps_u * std::pow(10.0, uniform(rng, -2.0, 2.0));
+        const Vector12d dx = displacement_with_slip(f, y, rng);
+        const double energy = friction_energy(f, dx, c, lambda, eps_u);
+        const Vector12d grad = friction_gradient(f, dx, c, lambda, eps_u);
+        const Matrix12d H = friction_hessian(f, dx, c, lambda, eps_u, true);
+        auto model = [&](const Matrix12d& hess, const Vector12d& d) {
+          return energy + grad.dot(d) + 0.5 * d.dot(hess * d);
+        };
+        for (int k = 0; k < 20; ++k) {
+          // Steps from a tenth to ten times the slip, and the one to the mirror image.
+          const Vector12d d = k == 0 ? Vector12d(-2.0 * dx)
+                                     : displacement_with_slip(f, y * std::pow(10.0, uniform(rng, -1.0, 1.0)), rng);
+          const double scale = c.mu_s * lambda * (y + tangential_displacement(f, d).norm());
+          CHECK(friction_energy(f, dx + d, c, lambda, eps_u) <= model(H, d) + 1e-12 * scale);
+        }
+        if (y >= 2.0 * eps_u) {
+          const Matrix12d exact = friction_hessian(f, dx, c, lambda, eps_u);
+          const Vector12d mirror = -2.0 * dx;
+          CHECK(model(exact, mirror) < friction_energy(f, dx + mirror, c, lambda, eps_u) - c.mu_k * lambda * y);
+        }
+      }
+    }
+  }
+}
+
 TEST_CASE("friction: parallel and degenerate edge-edge contacts get a central contact point") {
   // Parallel edges overlapping on ea's parameter range [0.5, 1]: g1 = 0.75, eb's point below it.
   const Vec3 ea0(0, 0, 0), ea1(2, 0, 0), eb0(1, 0.5, 0.1), eb1(4, 0.5, 0.1);
