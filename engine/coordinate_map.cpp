@@ -7,7 +7,9 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
+#include <unordered_map>
 
 namespace nexdyn {
 
@@ -174,27 +176,61 @@ int CoordinateMap::stencil_nodes_of(const int32_t* ids, int64_t slab, VertexNode
   for (int i = 0; i < k; ++i) vertices[i] = nodes_of(ids[i]);
   const int K = stencil_nodes(vertices, k, nodes);
   if (K < 0) throw std::logic_error("a stencil touches more than two affine bodies");
+  std::sort(nodes, nodes + K);  // one order for every stencil over these nodes
   return K;
 }
 
 void CoordinateMap::map_stencils(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
                                  MappedStencils& out) const {
   const int64_t num = static_cast<int64_t>(stencils.size() / 4);
-  out.first.assign(num + 1, 0);
+  // Groups by node set, numbered in order of first appearance.
+  using NodeSet = std::array<int32_t, kMaxStencilNodes>;
+  struct NodeSetHash {
+    size_t operator()(const NodeSet& key) const {
+      uint64_t h = 1469598103934665603ull;  // FNV-1a
+      for (int32_t node : key) h = (h ^ static_cast<uint32_t>(node)) * 1099511628211ull;
+      return static_cast<size_t>(h);
+    }
+  };
+  std::unordered_map<NodeSet, int64_t, NodeSetHash> group_of_set;
+  group_of_set.reserve(static_cast<size_t>(num));
+  std::vector<int64_t> group_of_source(num, -1);
+  out.nodes.clear();
+  VertexNodes vertices[4];
+  for (int64_t s = 0; s < num; ++s) {
+    NodeSet key;
+    key.fill(-1);
+    const int K = stencil_nodes_of(&stencils[4 * s], slab_begin[s + 1] - slab_begin[s], vertices, key.data());
+    if (K == 0) continue;  // held vertices only: nothing to map
+    const auto [it, fresh] = group_of_set.try_emplace(key, static_cast<int64_t>(group_of_set.size()));
+    if (fresh) out.nodes.insert(out.nodes.end(), key.begin(), key.end());
+    group_of_source[s] = it->second;
+  }
+  const int64_t groups = static_cast<int64_t>(group_of_set.size());
+  // Each group's sources, ascending (a counting sort over the sources in order).
+  out.source_begin.assign(groups + 1, 0);
+  for (int64_t g : group_of_source)
+    if (g >= 0) ++out.source_begin[g + 1];
+  for (int64_t g = 0; g < groups; ++g) out.source_begin[g + 1] += out.source_begin[g];
+  out.sources.resize(out.source_begin[groups]);
+  std::vector<int64_t> fill(out.source_begin.begin(), out.source_begin.end() - 1);
+  for (int64_t s = 0; s < num; ++s)
+    if (group_of_source[s] >= 0) out.sources[fill[group_of_source[s]]++] = s;
+  // Each group's sub-stencils.
+  out.first.assign(groups + 1, 0);
   out.stencils.clear();
   out.slab_begin.assign(1, 0);
-  VertexNodes vertices[4];
-  int32_t nodes[kMaxStencilNodes];
   int positions[4];
-  for (int64_t s = 0; s < num; ++s) {
-    const int K = stencil_nodes_of(&stencils[4 * s], slab_begin[s + 1] - slab_begin[s], vertices, nodes);
+  for (int64_t g = 0; g < groups; ++g) {
+    const int32_t* nodes = &out.nodes[kMaxStencilNodes * g];
+    const int K = static_cast<int>(std::count_if(nodes, nodes + kMaxStencilNodes, [](int32_t v) { return v >= 0; }));
     const int subs = num_sub_stencils(K);
     for (int sub = 0; sub < subs; ++sub) {
       const int n = sub_stencil_positions(K, sub, positions);
       for (int a = 0; a < 4; ++a) out.stencils.push_back(a < n ? nodes[positions[a]] : -1);
       out.slab_begin.push_back(out.slab_begin.back() + 9 * n * n);
     }
-    out.first[s + 1] = out.first[s] + subs;
+    out.first[g + 1] = out.first[g] + subs;
   }
 }
 
@@ -210,21 +246,28 @@ void CoordinateMap::map_coupling(const std::vector<int32_t>& stencils, std::vect
 void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
                               const double* slabs, const MappedStencils& mapped, double* out,
                               const uint8_t* active) const {
-  const int64_t num = static_cast<int64_t>(stencils.size() / 4);
-  parallel_for(num, [&](int64_t begin, int64_t end) {
+  parallel_for(mapped.num_groups(), [&](int64_t begin, int64_t end) {
     VertexNodes vertices[4];
     int32_t nodes[kMaxStencilNodes];
-    double full[9 * kMaxStencilNodes * kMaxStencilNodes];
+    double one[9 * kMaxStencilNodes * kMaxStencilNodes];
+    double sum[9 * kMaxStencilNodes * kMaxStencilNodes];
     int positions[4];
-    for (int64_t s = begin; s < end; ++s) {
-      if (!touches(&stencils[4 * s], active)) continue;
-      const int64_t size = slab_begin[s + 1] - slab_begin[s];
-      const int k = width_of_slab(size);
-      const int K = stencil_nodes_of(&stencils[4 * s], size, vertices, nodes);
-      map_stencil_hessian(vertices, k, slabs + slab_begin[s], nodes, K, full);
+    for (int64_t g = begin; g < end; ++g) {
+      const int64_t* source = &mapped.sources[mapped.source_begin[g]];
+      const int64_t count = mapped.source_begin[g + 1] - mapped.source_begin[g];
+      if (!touches(&stencils[4 * source[0]], active)) continue;
+      int K = 0;
+      for (int64_t i = 0; i < count; ++i) {
+        const int64_t s = source[i];
+        const int64_t size = slab_begin[s + 1] - slab_begin[s];
+        K = stencil_nodes_of(&stencils[4 * s], size, vertices, nodes);
+        map_stencil_hessian(vertices, width_of_slab(size), slabs + slab_begin[s], nodes, K, i == 0 ? sum : one);
+        if (i > 0)
+          for (int e = 0; e < 9 * K * K; ++e) sum[e] += one[e];
+      }
       const int N = 3 * K;
-      for (int64_t sub = mapped.first[s]; sub < mapped.first[s + 1]; ++sub) {
-        const int local = static_cast<int>(sub - mapped.first[s]);
+      for (int64_t sub = mapped.first[g]; sub < mapped.first[g + 1]; ++sub) {
+        const int local = static_cast<int>(sub - mapped.first[g]);
         const int n = sub_stencil_positions(K, local, positions);
         double* slab = out + mapped.slab_begin[sub];
         for (int b = 0; b < n; ++b)
@@ -233,11 +276,11 @@ void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::v
             for (int c = 0; c < 3; ++c)
               for (int r = 0; r < 3; ++r)
                 slab[(3 * b + c) * 3 * n + 3 * a + r] =
-                    mine ? full[(3 * positions[b] + c) * N + 3 * positions[a] + r] : 0.0;
+                    mine ? sum[(3 * positions[b] + c) * N + 3 * positions[a] + r] : 0.0;
           }
       }
     }
-  }, 256);
+  }, 64);
 }
 
 void CoordinateMap::follow_groups(int32_t* group) const {

@@ -13,10 +13,13 @@
 //   Hessian     the slabs of stencil terms, J^T H J        map_stencils(), map_slabs()
 //   direction   p_followers = J p_nodes (the map is linear, so a straight step in q moves every
 //               follower on a straight line and the CCD sweeps it unchanged)   follow()
-// A mapped stencil touches up to 8 nodes (two affine bodies). The contact pattern, the islands
-// and the slab terms work in stencils of 4 vertices, so a mapped stencil of more than 4 nodes is
-// cut into sub-stencils of at most 4: its nodes in chunks of two, one sub-stencil per pair of
-// chunks, each 3x3 block of J^T H J copied into exactly one of them (so their sum is J^T H J).
+// A mapped stencil touches up to 8 nodes (two affine bodies). Stencils over the same nodes (the
+// contacts of one pair of bodies: tens of them in a pile) are summed into one node stencil,
+// J^T (sum of their H) J, so that the contact pattern, its assembly and the islands see one
+// stencil per pair of bodies, not one per contact. The contact pattern, the islands and the slab
+// terms work in stencils of 4 vertices, so a node stencil of more than 4 nodes is cut into
+// sub-stencils of at most 4: its nodes in chunks of two, one sub-stencil per pair of chunks, each
+// 3x3 block copied into exactly one of them (so their sum is the node stencil's matrix).
 //
 // A model without affine bodies has the identity map (identity() true): callers skip it and the
 // engine's results stay bit for bit those of a tet-only engine.
@@ -31,11 +34,16 @@
 namespace nexdyn {
 
 // Stencils over nodes (num x 4, -1 = none) made from stencils over vertices, with the slab
-// layout of their J^T H J pieces.
+// layout of their J^T H J pieces. The source stencils over one set of nodes form a group; each
+// group is one node stencil, cut into sub-stencils.
 struct MappedStencils {
-  std::vector<int32_t> stencils;    // (num x 4) node ids of the sub-stencils
-  std::vector<int64_t> slab_begin;  // (num + 1) start of each sub-stencil's 3n x 3n slab
-  std::vector<int64_t> first;       // (source stencils + 1) each source's first sub-stencil
+  std::vector<int32_t> stencils;       // (num x 4) node ids of the sub-stencils
+  std::vector<int64_t> slab_begin;     // (num + 1) start of each sub-stencil's 3n x 3n slab
+  std::vector<int64_t> first;          // (groups + 1) each group's first sub-stencil
+  std::vector<int32_t> nodes;          // (groups x kMaxStencilNodes) its nodes, ascending, -1 past K
+  std::vector<int64_t> source_begin;   // (groups + 1) into sources
+  std::vector<int64_t> sources;        // each group's source stencils, ascending
+  int64_t num_groups() const { return static_cast<int64_t>(first.size()) - 1; }
 };
 
 class CoordinateMap {
@@ -57,14 +65,16 @@ class CoordinateMap {
   // unknowns). Per body, in vertex order: the same bits on any number of threads.
   void fold_gradient(double* g) const;
   // The node stencils of `stencils` (num x 4 vertex ids, -1 = none), with slab sizes; `slab_begin`
-  // gives each source slab's size (3n x 3n, n its used width).
+  // gives each source slab's size (3n x 3n, n its used width). Groups are numbered in the order
+  // of their first source: the same on any number of threads.
   void map_stencils(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin,
                     MappedStencils& out) const;
   // The node stencils of `stencils` for coupling alone (islands, thawing): no slab sizes.
   void map_coupling(const std::vector<int32_t>& stencils, std::vector<int32_t>& out) const;
-  // out (mapped.slab_begin.back() values) = the sub-stencils' slabs of J^T H J, H the source
-  // slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped` was made from. With
-  // `active` (a vertex mask, as ActiveSubset's), only the stencils touching an active vertex: the
+  // out (mapped.slab_begin.back() values) = the sub-stencils' slabs of J^T (sum of H) J over
+  // each group, H the source slabs (`slabs`, laid out by `slab_begin`) of the stencils `mapped`
+  // was made from, summed in source order. With `active` (a vertex mask, as ActiveSubset's), only
+  // the groups touching an active vertex (the sources of a group touch the same bodies): the
   // others' sub-stencils touch no active node, and an assembly over the active columns reads none.
   void map_slabs(const std::vector<int32_t>& stencils, const std::vector<int64_t>& slab_begin, const double* slabs,
                  const MappedStencils& mapped, double* out, const uint8_t* active = nullptr) const;
@@ -80,7 +90,8 @@ class CoordinateMap {
   void follow_groups(int32_t* group) const;
 
  private:
-  // The nodes of source stencil s (width 4, slab size from `slab`) and its vertices' nodes.
+  // The nodes of source stencil s (width 4, slab size from `slab`), ascending, and its vertices'
+  // nodes.
   int stencil_nodes_of(const int32_t* ids, int64_t slab, VertexNodes* vertices, int32_t* nodes) const;
 
   const Model& model_;

@@ -112,16 +112,17 @@ TEST_CASE("coordinate map: the folded gradient is J^T g, zero at the followers")
   for (int v : {3, 4, 5, 10, 11}) CHECK(g.segment<3>(3 * v).isZero(0.0));
 }
 
-TEST_CASE("coordinate map: mapped stencil slabs sum to J^T H J, in sub-stencils of at most 4 distinct nodes") {
+TEST_CASE("coordinate map: stencils over one node set are summed, J^T H J in sub-stencils of at most 4 distinct nodes") {
   std::mt19937_64 rng(3);
   const Model model = two_affine_bodies(rng);
   const CoordinateMap map(model);
   // Stencils over vertices and their widths n (slab 3n x 3n): two affine bodies (8 nodes); tet
   // vertices with a follower (7); a vertex-plane stencil of a follower (4); a held vertex (-1)
-  // amid tet vertices; tet vertices alone; a follower with an absent second vertex.
-  const std::vector<int32_t> stencils = {3, 10, 11, 4, 0, 1, 2, 3, 5, -1, -1, -1,
-                                         0, 1, -1, 2, 0, 1, 2, -1, 10, -1, -1, -1};
-  const std::vector<int> widths = {4, 4, 1, 4, 3, 2};
+  // amid tet vertices; the same tet vertices alone; a follower with an absent second vertex;
+  // another contact of the two bodies.
+  const std::vector<int32_t> stencils = {3, 10, 11, 4, 0, 1, 2, 3, 5, -1, -1, -1, 0, 1, -1, 2,
+                                         0, 1, 2, -1, 10, -1, -1, -1, 5, 10, -1, -1};
+  const std::vector<int> widths = {4, 4, 1, 4, 3, 2, 2};
   std::vector<int64_t> slab_begin{0};
   for (int n : widths) slab_begin.push_back(slab_begin.back() + 9 * n * n);
   std::vector<double> slabs(slab_begin.back());
@@ -135,32 +136,41 @@ TEST_CASE("coordinate map: mapped stencil slabs sum to J^T H J, in sub-stencils 
 
   MappedStencils mapped;
   map.map_stencils(stencils, slab_begin, mapped);
-  REQUIRE(mapped.first.size() == widths.size() + 1);
-  // 8 nodes: 4 chunks of 2, 6 sub-stencils; 7 nodes: 4 chunks, 6; 4 or fewer: 1.
-  const std::vector<int64_t> subs = {6, 6, 1, 1, 1, 1};
-  for (size_t s = 0; s < subs.size(); ++s) CHECK(mapped.first[s + 1] - mapped.first[s] == subs[s]);
+  // Groups in order of first source: the two bodies {0, 6}, {1}, {2}, the tet vertices {3, 4},
+  // {5}. Sub-stencils: 8 nodes: 4 chunks of 2, 6; 7 nodes: 4 chunks, 6; 4 or fewer: 1.
+  const std::vector<std::vector<int64_t>> groups = {{0, 6}, {1}, {2}, {3, 4}, {5}};
+  const std::vector<int64_t> subs = {6, 6, 1, 1, 1};
+  REQUIRE(mapped.num_groups() == static_cast<int64_t>(groups.size()));
+  for (size_t g = 0; g < groups.size(); ++g) {
+    CAPTURE(g);
+    CHECK(std::vector<int64_t>(mapped.sources.begin() + mapped.source_begin[g],
+                               mapped.sources.begin() + mapped.source_begin[g + 1]) == groups[g]);
+    CHECK(mapped.first[g + 1] - mapped.first[g] == subs[g]);
+  }
   std::vector<double> out(mapped.slab_begin.back());
   map.map_slabs(stencils, slab_begin, slabs.data(), mapped, out.data());
 
   const int num_dofs = 3 * model.num_vertices;
-  for (size_t s = 0; s < widths.size(); ++s) {
-    CAPTURE(s);
-    // This stencil alone: its vertex slab against its sub-stencils' node slabs.
+  const Eigen::MatrixXd J = dense_jacobian(model);
+  for (size_t g = 0; g < groups.size(); ++g) {
+    CAPTURE(g);
+    // The group's vertex slabs, summed, against its sub-stencils' node slabs.
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(num_dofs, num_dofs), Hq = H;
-    const std::vector<int32_t> one(stencils.begin() + 4 * s, stencils.begin() + 4 * s + 4);
-    const std::vector<int64_t> one_begin{0, slab_begin[s + 1] - slab_begin[s]};
-    scatter(one, one_begin, slabs.data() + slab_begin[s], H);
-    const std::vector<int32_t> sub(mapped.stencils.begin() + 4 * mapped.first[s],
-                                   mapped.stencils.begin() + 4 * mapped.first[s + 1]);
+    for (int64_t s : groups[g]) {
+      const std::vector<int32_t> one(stencils.begin() + 4 * s, stencils.begin() + 4 * s + 4);
+      const std::vector<int64_t> one_begin{0, slab_begin[s + 1] - slab_begin[s]};
+      scatter(one, one_begin, slabs.data() + slab_begin[s], H);
+    }
+    const std::vector<int32_t> sub(mapped.stencils.begin() + 4 * mapped.first[g],
+                                   mapped.stencils.begin() + 4 * mapped.first[g + 1]);
     std::vector<int64_t> sub_begin;
-    for (int64_t k = mapped.first[s]; k <= mapped.first[s + 1]; ++k)
-      sub_begin.push_back(mapped.slab_begin[k] - mapped.slab_begin[mapped.first[s]]);
-    scatter(sub, sub_begin, out.data() + mapped.slab_begin[mapped.first[s]], Hq);
-    const Eigen::MatrixXd J = dense_jacobian(model);
+    for (int64_t k = mapped.first[g]; k <= mapped.first[g + 1]; ++k)
+      sub_begin.push_back(mapped.slab_begin[k] - mapped.slab_begin[mapped.first[g]]);
+    scatter(sub, sub_begin, out.data() + mapped.slab_begin[mapped.first[g]], Hq);
     const Eigen::MatrixXd expected = J.transpose() * H * J;
     CHECK((Hq - expected).norm() <= 1e-13 * expected.norm());
     // Each sub-stencil: distinct nodes, none a follower, an exactly symmetric slab.
-    for (int64_t k = mapped.first[s]; k < mapped.first[s + 1]; ++k) {
+    for (int64_t k = mapped.first[g]; k < mapped.first[g + 1]; ++k) {
       const int32_t* ids = &mapped.stencils[4 * k];
       for (int a = 0; a < 4; ++a) {
         if (ids[a] < 0) continue;
