@@ -8,12 +8,15 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <stdexcept>
 #include <unordered_map>
 
 namespace nexdyn {
 
 namespace {
+
+constexpr double kPi = 3.14159265358979323846;
 
 // Slab size (entries) -> the stencil's width n, as the contact pattern reads it.
 int width_of_slab(int64_t entries) {
@@ -94,6 +97,37 @@ int CoordinateMap::turn(const double* x, const double* direction, const int32_t*
     ++turned;
   }
   return turned;
+}
+
+void CoordinateMap::turn_pads(const double* x, const double* direction, const uint8_t* moves, double* pad) const {
+  std::fill_n(pad, model_.num_vertices, 0.0);
+  parallel_for(static_cast<int64_t>(model_.affine_bodies.size()), [&](int64_t begin, int64_t end) {
+    for (int64_t b = begin; b < end; ++b) {
+      const AffineBody& body = model_.affine_bodies[b];
+      if (!moves[body.node]) continue;
+      Eigen::Matrix3d C, D;
+      for (int j = 0; j < 3; ++j) {
+        C.col(j) = Eigen::Vector3d::Map(x + 3 * int64_t{body.node + 1 + j});
+        D.col(j) = Eigen::Vector3d::Map(direction + 3 * int64_t{body.node + 1 + j});
+      }
+      if (D.squaredNorm() == 0.0 || !(C.determinant() > 0.0)) continue;  // turn() leaves it straight
+      // M = D C^-1 = W + E. The turned axes R (I + E) C against the chord's (I + W + E) C differ
+      // by ((R - I - W) + (R - I) E) C, with R = exp(W) a turn by theta = |w|:
+      // |R - I - W| <= (theta - sin theta) + (1 - cos theta), |R - I| <= 2 sin(theta / 2), both
+      // growing with theta up to pi (and at most 2 beyond), |E| <= |E|_F. A smaller alpha scales
+      // theta and E down, so the bound at alpha = 1 holds for every trial.
+      const Eigen::Matrix3d M = D * C.inverse();
+      const Eigen::Matrix3d W = 0.5 * (M - M.transpose());
+      const double e_norm = (0.5 * (M + M.transpose())).norm();
+      const double theta = Eigen::Vector3d(W(2, 1), W(0, 2), W(1, 0)).norm();
+      const double bend = theta < kPi ? 1.0 - std::cos(theta) : 2.0;
+      const double chord = theta < kPi ? 2.0 * std::sin(0.5 * theta) : 2.0;
+      const double factor = (theta - std::sin(theta)) + bend + chord * e_norm;
+      const Eigen::Vector3d p = Eigen::Vector3d::Map(x + 3 * int64_t{body.node});
+      for (int64_t v = body.follower_begin; v < body.follower_begin + body.follower_count; ++v)
+        pad[v] = factor * (Eigen::Vector3d::Map(x + 3 * v) - p).norm();
+    }
+  }, 64);
 }
 
 VertexNodes CoordinateMap::nodes_of(int32_t v) const {

@@ -86,6 +86,11 @@ class CoordinateMap {
   // those bodies into trial (whose p nodes must already be x + alpha d); returns how many turned.
   int turn(const double* x, const double* direction, const int32_t* group_of_vertex, const double* group_alpha,
            double* trial) const;
+  // How far turn() can take each follower from the chord point x + alpha d, for any alpha in
+  // [0, 1] and any scaling of `direction` by at most 1: pad[v] (num_vertices, written; 0 but for
+  // the followers of bodies whose first node moves[]). A sweep padded by it covers the turned
+  // trial points (BarrierPotential::sweep), so they need no search of their own.
+  void turn_pads(const double* x, const double* direction, const uint8_t* moves, double* pad) const;
   // group[v] of every follower = the group of its body's first node (-1 = does not move).
   void follow_groups(int32_t* group) const;
 

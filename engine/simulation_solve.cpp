@@ -32,6 +32,11 @@ constexpr double kFrictionLagTolerance = 1e-3;
 // kMaxFrictionLags times). 10: on the 100-body piles, 100 saves more iterations on affine bodies
 // but costs the tet pile time in its CCD and line search (docs/performance.md).
 constexpr double kRelagBelow = 10.0;
+// How far off its chord an affine body's turned trial point may go, in dhat, and still be covered
+// by the iteration's one padded CCD sweep (NewtonSettings::turn_reach). On pile_1000_affine's
+// landing the bound on a turn (CoordinateMap::turn_pads) passes that in under 3% of the iterations
+// (docs/performance.md, "One CCD sweep an iteration").
+constexpr double kTurnReach = 10.0;
 
 // Whether lagging still converges: the fixed-point iteration of a lag is linear at best, each
 // change of the summed normal force a fraction of the one before. When a change is no smaller
@@ -252,6 +257,7 @@ NewtonResult Simulation::solve_with_joints(const StepContext& ctx, int& iteratio
   settings.tolerance = scene_.solver.tolerance;
   settings.max_iterations = scene_.solver.max_iterations;
   settings.dt = ctx.dt;
+  settings.turn_reach = contact_ ? kTurnReach * contact_->dhat() : 0.0;
   if (friction_ && scene_.contact.friction_iterations < 0 && !friction_->table().has_static_peak()) {
     // Converged lagging: the friction is re-lagged inside the solve once Newton is near the
     // solution, so that the solve ends close to the lag's fixed point and the re-solves of

@@ -142,9 +142,14 @@ class BarrierPotential {
   // group_of_vertex all vertices form group 0.
   // With `moving` (num_vertices flags; p = 0 wherever it is 0), sweep() searches again only the
   // pairs with a moving vertex and keeps the other pairs of the last search, valid because their
-  // vertices have not moved since. That makes it cost what the moving bodies cost.
-  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr);
+  // vertices have not moved since. That makes it cost what the moving bodies cost. With `pad`
+  // too (num_vertices, as find_contact_candidates'), the pairs also cover every path within
+  // pad[v] of the segment.
+  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr, const double* pad = nullptr);
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
+  // The next group_max_steps() checks the motion x -> x + p over the pairs of the last sweep,
+  // without searching again: the caller promises that this path lies within that sweep's pads.
+  void move_sweep_end(const double* x, const double* p);
 
  private:
   const Model& model_;

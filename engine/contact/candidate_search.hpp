@@ -83,11 +83,11 @@ inline std::vector<Eigen::Vector3d> body_shifts(const Model& m, const double* x0
 
 // Boxes (lower, upper: 3 per primitive, by primitive index) of the primitives with K vertices
 // each in `ranges`, covering them at x0 and at x1 - shift of their body (no shift: shift ==
-// nullptr), inflated by r.
+// nullptr), inflated by r and by each vertex's pad[v] (null: none).
 template <int K>
 void primitive_boxes(const Model& m, const int32_t* ids, const IndexRanges& ranges, const double* x0,
-                     const double* x1, const Eigen::Vector3d* shift, double r, double* lower,
-                     double* upper) {
+                     const double* x1, const Eigen::Vector3d* shift, double r, const double* pad,
+                     double* lower, double* upper) {
   parallel_for_ranges(ranges, 1024, [&](int64_t begin, int64_t end) {
     for (int64_t i = begin; i < end; ++i) {
       const int64_t first = ids[K * i];
@@ -96,13 +96,15 @@ void primitive_boxes(const Model& m, const int32_t* ids, const IndexRanges& rang
         double lo = x0[3 * first + d], hi = lo;
         for (int k = 0; k < K; ++k) {
           const int64_t v = ids[K * i + k];
-          lo = std::min(lo, x0[3 * v + d]);
-          hi = std::max(hi, x0[3 * v + d]);
+          double v_lo = x0[3 * v + d], v_hi = v_lo;
           if (x1) {
             const double end_position = s ? x1[3 * v + d] - s[d] : x1[3 * v + d];
-            lo = std::min(lo, end_position);
-            hi = std::max(hi, end_position);
+            v_lo = std::min(v_lo, end_position);
+            v_hi = std::max(v_hi, end_position);
           }
+          if (pad) v_lo -= pad[v], v_hi += pad[v];
+          lo = std::min(lo, v_lo);
+          hi = std::max(hi, v_hi);
         }
         lower[3 * i + d] = lo - r;
         upper[3 * i + d] = hi + r;
@@ -159,7 +161,7 @@ inline std::vector<BodyPrimitives> body_primitives(const Model& m, const uint8_t
 struct FrameBoxes {
   Doubles v_lo, v_hi, e_lo, e_hi, t_lo, t_hi;
   FrameBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const uint8_t* wanted,
-             const double* x0, const double* x1, const Eigen::Vector3d* shift, double r) {
+             const double* x0, const double* x1, const Eigen::Vector3d* shift, double r, const double* pad) {
     IndexRanges sv, edges, triangles;
     for (size_t b = 0; b < prims.size(); ++b) {
       if (wanted && !wanted[b]) continue;
@@ -173,9 +175,9 @@ struct FrameBoxes {
     e_hi.resize(m.surface_edges.size() / 2 * 3);
     t_lo.resize(m.surface_triangles.size());
     t_hi.resize(m.surface_triangles.size());
-    primitive_boxes<1>(m, m.surface_vertices.data(), sv, x0, x1, shift, r, v_lo.data(), v_hi.data());
-    primitive_boxes<2>(m, m.surface_edges.data(), edges, x0, x1, shift, r, e_lo.data(), e_hi.data());
-    primitive_boxes<3>(m, m.surface_triangles.data(), triangles, x0, x1, shift, r, t_lo.data(),
+    primitive_boxes<1>(m, m.surface_vertices.data(), sv, x0, x1, shift, r, pad, v_lo.data(), v_hi.data());
+    primitive_boxes<2>(m, m.surface_edges.data(), edges, x0, x1, shift, r, pad, e_lo.data(), e_hi.data());
+    primitive_boxes<3>(m, m.surface_triangles.data(), triangles, x0, x1, shift, r, pad, t_lo.data(),
                        t_hi.data());
   }
 };
@@ -187,11 +189,11 @@ struct SurfaceBoxes {
   FrameBoxes world;
   std::unique_ptr<FrameBoxes> moving;  // null without x1
   SurfaceBoxes(const Model& m, const std::vector<BodyPrimitives>& prims, const uint8_t* world_wanted,
-               const uint8_t* own_wanted, const double* x0, const double* x1, double r)
-      : world(m, prims, world_wanted, x0, x1, nullptr, r) {
+               const uint8_t* own_wanted, const double* x0, const double* x1, double r, const double* pad)
+      : world(m, prims, world_wanted, x0, x1, nullptr, r, pad) {
     if (!x1) return;
     const std::vector<Eigen::Vector3d> shift = body_shifts(m, x0, x1);
-    moving = std::make_unique<FrameBoxes>(m, prims, own_wanted, x0, x1, shift.data(), r);
+    moving = std::make_unique<FrameBoxes>(m, prims, own_wanted, x0, x1, shift.data(), r, pad);
   }
   const FrameBoxes& body_frame() const { return moving ? *moving : world; }
 };
@@ -215,7 +217,7 @@ struct NeighborBodies {
 };
 
 inline NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrimitives>& prims,
-                               const double* x0, const double* x1, double r) {
+                               const double* x0, const double* x1, double r, const double* pad) {
   const auto nb = static_cast<int32_t>(m.bodies.size());
   NeighborBodies out;
   std::vector<double>& lo = out.body_lo;
@@ -238,6 +240,7 @@ inline NeighborBodies neighbor_bodies(const Model& m, const std::vector<BodyPrim
             vlo = std::min(vlo, x1[3 * v + d]);
             vhi = std::max(vhi, x1[3 * v + d]);
           }
+          if (pad) vlo -= pad[v], vhi += pad[v];
           lo[3 * b + d] = std::min(lo[3 * b + d], vlo - r);
           hi[3 * b + d] = std::max(hi[3 * b + d], vhi + r);
         }
@@ -441,7 +444,7 @@ NeighborSubsets neighbor_subsets(const NeighborBodies& neighbors, const BlockedB
 }
 
 inline void find_vertex_plane(const Model& m, const uint8_t* free, const double* x0, const double* x1, double inflation,
-                       std::vector<IndexPair>& out) {
+                              const double* pad, std::vector<IndexPair>& out) {
   out.clear();
   for (int32_t v : m.surface_vertices) {
     if (!is_free(free, v)) continue;
@@ -452,6 +455,7 @@ inline void find_vertex_plane(const Model& m, const uint8_t* free, const double*
       };
       double s = signed_distance(x0);
       if (x1) s = std::min(s, signed_distance(x1));
+      if (pad) s -= pad[v];
       if (s < 2.0 * inflation) out.emplace_back(v, static_cast<int32_t>(p));
     }
   }

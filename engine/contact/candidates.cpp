@@ -37,14 +37,15 @@ namespace {
 // constructor; then the vertex-triangle and edge-edge loops.
 class CandidateSearch {
  public:
-  CandidateSearch(const Model& m, const uint8_t* free, const double* x0, const double* x1, double inflation)
+  CandidateSearch(const Model& m, const uint8_t* free, const double* x0, const double* x1, double inflation,
+                  const double* pad)
       : m_(m),
         free_(free),
         prims_(body_primitives(m, free)),
-        neighbors_(neighbor_bodies(m, prims_, x0, x1, inflation)),
+        neighbors_(neighbor_bodies(m, prims_, x0, x1, inflation, pad)),
         own_searched_(own_searched(m, prims_)),
         searched_(searched(prims_, neighbors_)),
-        boxes_(m, prims_, searched_.data(), own_searched_.data(), x0, x1, inflation),
+        boxes_(m, prims_, searched_.data(), own_searched_.data(), x0, x1, inflation, pad),
         world_(boxes_.world),
         own_(boxes_.body_frame()),
         tri_free_(free_flags<3>(free, m.surface_triangles.data(), static_cast<int64_t>(m.surface_triangles.size() / 3))),
@@ -216,20 +217,21 @@ void CandidateSearch::edge_edge_pairs(std::vector<IndexPair>& out) const {
 }  // namespace
 
 void find_contact_candidates(const Model& m, const double* x0, const double* x1, double inflation,
-                             ContactCandidates& out, const uint8_t* moving) {
+                             ContactCandidates& out, const uint8_t* moving, const double* pad) {
   const std::vector<uint8_t> free_storage = free_vertices(m, moving);
   const uint8_t* free = free_storage.data();
-  const CandidateSearch search(m, free, x0, x1, inflation);
+  const CandidateSearch search(m, free, x0, x1, inflation, pad);
   search.vertex_triangle_pairs(out.vertex_triangle);
   search.edge_edge_pairs(out.edge_edge);
-  find_vertex_plane(m, free, x0, x1, inflation, out.vertex_plane);
+  find_vertex_plane(m, free, x0, x1, inflation, pad, out.vertex_plane);
 }
 
 void find_contact_candidates_brute_force(const Model& m, const double* x0, const double* x1,
-                                         double inflation, ContactCandidates& out, const uint8_t* moving) {
+                                         double inflation, ContactCandidates& out, const uint8_t* moving,
+                                         const double* pad) {
   const std::vector<uint8_t> free_storage = free_vertices(m, moving);
   const uint8_t* free = free_storage.data();
-  const SurfaceBoxes boxes(m, body_primitives(m, free), nullptr, nullptr, x0, x1, inflation);
+  const SurfaceBoxes boxes(m, body_primitives(m, free), nullptr, nullptr, x0, x1, inflation, pad);
   // Same-body pairs compare body-frame boxes, others world boxes.
   auto frame = [&](int32_t body_a, int32_t body_b) -> const FrameBoxes& {
     return body_a == body_b ? boxes.body_frame() : boxes.world;
@@ -255,7 +257,7 @@ void find_contact_candidates_brute_force(const Model& m, const double* x0, const
           keep_edge_edge(m, free, static_cast<int32_t>(e), static_cast<int32_t>(g)))
         out.edge_edge.emplace_back(static_cast<int32_t>(e), static_cast<int32_t>(g));
     }
-  find_vertex_plane(m, free, x0, x1, inflation, out.vertex_plane);
+  find_vertex_plane(m, free, x0, x1, inflation, pad, out.vertex_plane);
 }
 
 }  // namespace nexdyn

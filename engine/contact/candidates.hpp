@@ -77,12 +77,16 @@ void for_each_pair_list(const Model& m, F&& f) {
 // With `moving` (num_vertices flags), "free" means moving[v] instead of not Dirichlet-held: only
 // pairs with a vertex that moves are found, and the work is that of the moving bodies only
 // (for re-searching after a motion of a few bodies, barrier_potential.cpp).
+// With `pad` (num_vertices), each vertex's box is widened by pad[v] more: the pairs cover any
+// path that stays within pad[v] of the segment x0 -> x1 (an affine body's turned trial points,
+// CoordinateMap::turn_pads).
 void find_contact_candidates(const Model& model, const double* x0, const double* x1,
-                             double inflation, ContactCandidates& out, const uint8_t* moving = nullptr);
+                             double inflation, ContactCandidates& out, const uint8_t* moving = nullptr,
+                             const double* pad = nullptr);
 
 // The O(n^2) reference with the same contract, for tests.
 void find_contact_candidates_brute_force(const Model& model, const double* x0, const double* x1,
                                          double inflation, ContactCandidates& out,
-                                         const uint8_t* moving = nullptr);
+                                         const uint8_t* moving = nullptr, const double* pad = nullptr);
 
 }  // namespace nexdyn

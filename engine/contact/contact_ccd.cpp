@@ -30,13 +30,17 @@ double BarrierPotential::max_step(const double* x, const double* p) {
   return alpha;
 }
 
-void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving) {
-  ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
-  const int64_t n = model_.num_dofs();
-  parallel_for(n, [&](int64_t b, int64_t e) {
+void BarrierPotential::move_sweep_end(const double* x, const double* p) {
+  parallel_for(model_.num_dofs(), [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x1_[i] = x[i] + p[i];
   }, 8192);
-  if (!moving) return find_candidates(x, x1_.data());
+}
+
+void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) {
+  ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
+  const int64_t n = model_.num_dofs();
+  move_sweep_end(x, p);
+  if (!moving) return find_candidates(x, x1_.data());  // (no pads: only the solver's sweeps pass them)
   ProfileScope broad(profile_, StepPhase::broad_phase);
   static_search_ = false;
   // The kept pairs cover the still vertices where they are, the fresh ones the moving ones at x.
@@ -44,7 +48,7 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   // Pairs of vertices that stay put keep their candidates: none of them moved since the last
   // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.
-  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving);
+  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving, pad);
   auto still = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
       if (v >= 0 && moving[v]) return false;

@@ -209,8 +209,12 @@ double IncrementalPotential::max_step(const double* x, const double* p) {
   return alpha;
 }
 
-void IncrementalPotential::sweep(const double* x, const double* p, const uint8_t* moving) {
-  for (const auto& term : terms_) term->sweep(x, p, moving);
+void IncrementalPotential::sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) {
+  for (const auto& term : terms_) term->sweep(x, p, moving, pad);
+}
+
+void IncrementalPotential::move_sweep_end(const double* x, const double* p) {
+  for (const auto& term : terms_) term->move_sweep_end(x, p);
 }
 
 const ContactCandidates* IncrementalPotential::sweep_candidates() const {

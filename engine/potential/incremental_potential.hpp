@@ -107,8 +107,11 @@ class IncrementalPotential {
   double max_step(const double* x, const double* p);
   // max_step for independent groups of vertices (barrier_potential.hpp): sweep(x, p) finds the
   // candidates of x -> x + p, the caller joins its groups over sweep_candidates(), then
-  // group_max_steps lowers alpha[g] to each group's collision-free fraction.
-  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr);
+  // group_max_steps lowers alpha[g] to each group's collision-free fraction. With `pad`, the
+  // pairs cover paths within pad[v] of the segment too, and move_sweep_end(x, p) has the next
+  // group_max_steps check such a path x -> x + p over them, without searching again.
+  void sweep(const double* x, const double* p, const uint8_t* moving = nullptr, const double* pad = nullptr);
+  void move_sweep_end(const double* x, const double* p);
   const ContactCandidates* sweep_candidates() const;
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
   // The stencil lists (num x 4 vertex ids, -1 = none) that couple vertices in the Hessian beyond

@@ -92,7 +92,8 @@ class PotentialTerm {
   virtual const std::vector<int32_t>* coupling_stencils() const { return nullptr; }
 
   // ---- terms that bound the step (contact): see BarrierPotential::sweep
-  virtual void sweep(const double* /*x*/, const double* /*p*/, const uint8_t* /*moving*/) {}
+  virtual void sweep(const double* /*x*/, const double* /*p*/, const uint8_t* /*moving*/, const double* /*pad*/) {}
+  virtual void move_sweep_end(const double* /*x*/, const double* /*p*/) {}
   // Pairs whose moving vertices must share a group for group_max_steps (null: none).
   virtual const ContactCandidates* swept_pairs() const { return nullptr; }
   virtual void group_max_steps(const double* /*x*/, const int32_t* /*group_of_vertex*/, double* /*alpha*/) {}

@@ -362,7 +362,20 @@ int32_t NewtonSolver::build_groups(const double* x) {
   }
   for (const AffineBody& body : model_.affine_bodies)
     std::fill_n(vertex_moves_.begin() + body.follower_begin, body.follower_count, vertex_moves_[body.node]);
-  potential_.sweep(x, direction_.data(), vertex_moves_.data());
+  // Padded by how far the line search's turns can leave the chord (up to the reach), the sweep's
+  // pairs cover the turned trial points too: mostly one search per iteration (turned_point_valid).
+  const double* pads = nullptr;
+  if (!model_.affine_bodies.empty()) {
+    turn_pads_.assign(model_.num_vertices, 0.0);
+    if (turn_reach_ > 0.0) {
+      potential_.map().turn_pads(x, direction_.data(), vertex_moves_.data(), turn_pads_.data());
+      // (plus a millionth of the reach for the rounding of the trial points: a turn by 1e-7 rad
+      // leaves the chord by less than its coordinates' last bits)
+      for (double& pad : turn_pads_) pad = std::min(pad + 1e-6 * turn_reach_, turn_reach_);
+    }
+    pads = turn_pads_.data();
+  }
+  potential_.sweep(x, direction_.data(), vertex_moves_.data(), pads);
   groups_.reset(num_islands);
   if (const ContactCandidates* c = potential_.sweep_candidates()) {
     const std::vector<int32_t>& island_of = islands_.island_of_vertex();
@@ -426,31 +439,46 @@ bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult
   // the search halved the steps of turning bodies over tens of iterations. If the turned point
   // fails (a turn into a contact, or no decrease once its pairs are known), the straight search.
   NewtonResult turned = result;
+  turn_swept_ = false;
   if (line_search_pass(x, num_groups, true, turned) && turned_point_valid(x, num_groups)) return true;
-  potential_.sweep(x, direction_.data(), vertex_moves_.data());  // the straight step's pairs again
+  // The vertices whose turns were searched get the straight step's pairs again.
+  if (turn_swept_) potential_.sweep(x, direction_.data(), turn_moves_.data(), turn_pads_.data());
   return line_search_pass(x, num_groups, false, result);
 }
 
 bool NewtonSolver::turned_point_valid(const double* x, int32_t num_groups) {
   // The turned trial is off the swept segment x -> x + alpha p by the turn's motion (second order
-  // in alpha theta): CCD over that motion from the straight point, then the energy test again
-  // with the pairs that sweep found (so that the candidates cover the accepted point).
+  // in alpha theta). Where that motion is within a vertex's pad, build_groups' sweep covers it;
+  // the vertices it takes further (a turn beyond the reach) have their pairs searched again along
+  // the turn from the straight point, and then the line search's energies, which missed those
+  // pairs, are taken again. Either way a CCD over the turn tells whether the trial is reached
+  // without crossing a contact.
+  if (!potential_.sweep_candidates()) return true;  // no contact
   const int64_t n = model_.num_dofs();
   straight_.resize(n);
   turn_motion_.resize(n);
-  turn_moves_.assign(model_.num_vertices, 0);
   bool any = false;
   for (int64_t i = 0; i < n; ++i) {
     const int32_t g = group_of_vertex_[i / 3];
     straight_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
     turn_motion_[i] = trial_[i] - straight_[i];
-    if (turn_motion_[i] != 0.0) turn_moves_[i / 3] = 1, any = true;
+    any |= turn_motion_[i] != 0.0;
   }
   if (!any) return true;
-  potential_.sweep(straight_.data(), turn_motion_.data(), turn_moves_.data());
+  turn_moves_.assign(model_.num_vertices, 0);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (model_.axis_node(v)) continue;  // a column of A: no point, in no contact pair
+    const double off = Eigen::Vector3d::Map(&turn_motion_[3 * int64_t{v}]).norm();
+    if (off > turn_pads_[v]) turn_moves_[v] = 1, turn_swept_ = true;
+  }
+  if (turn_swept_)  // (the others move too, within their pads: their kept pairs cover them)
+    potential_.sweep(straight_.data(), turn_motion_.data(), turn_moves_.data());
+  else
+    potential_.move_sweep_end(straight_.data(), turn_motion_.data());
   double alpha = 1.0;
   potential_.group_max_steps(straight_.data(), nullptr, &alpha);
   if (alpha < 1.0) return false;
+  if (!turn_swept_) return true;
   potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
   for (int32_t k = 0; k < num_groups; ++k)
     if (!sufficient_decrease(k)) return false;
@@ -509,6 +537,7 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
 // islands that still move, their groups and CCD caps, the line search, the terms' adaptive updates.
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
+  turn_reach_ = settings.turn_reach;
   forget_unused_systems();
   // Islands whose potential changed since the last solve (a new friction lag) start unfrozen.
   for (const std::vector<int32_t>* stencils : potential_.take_changed_stencils()) thaw(*stencils);

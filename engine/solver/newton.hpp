@@ -52,6 +52,11 @@ struct NewtonSettings {
   std::function<bool(const double*)> relag;
   double relag_below = 0.0;
   int max_relags = 0;
+  // [m] With affine bodies, how far off its chord a vertex's turned trial point may go and still
+  // be covered by the iteration's one CCD sweep (its boxes are padded by up to this much,
+  // build_groups); turns that go further are searched again (turned_point_valid). Ten dhat
+  // from the simulation (engine/simulation_solve.cpp, kTurnReach); 0 without contact.
+  double turn_reach = 0.0;
 };
 
 struct NewtonResult {
@@ -130,7 +135,8 @@ class NewtonSolver {
   bool solve_direction(const double* x, int it, NewtonResult& result);
   // direction_ = -H^-1 g; islands below the tolerance converge (p = 0); true when any moves.
   bool mark_moving_islands(const NewtonSettings& settings, NewtonResult& result);
-  // Groups of moving islands linked by pairs of the CCD sweep of x -> x + p; returns their count.
+  // Groups of moving islands linked by pairs of the CCD sweep of x -> x + p (padded by the affine
+  // bodies' turns); returns their count.
   int32_t build_groups(const double* x);
   // Scales each group's direction to its collision-free fraction; the groups' slopes.
   bool cap_steps(const double* x, int32_t num_groups, NewtonResult& result);
@@ -140,8 +146,8 @@ class NewtonSolver {
   bool line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result);
   // Whether group k's trial energy decreased enough (Armijo, with a round-off allowance).
   bool sufficient_decrease(int32_t k) const;
-  // The turned trial point is collision-free from the straight one and every group decreases
-  // with the contact pairs found there (they then cover the accepted point).
+  // The turned trial point is collision-free from the straight one and, if its pairs had to be
+  // searched again, every group still decreases with them (they then cover the accepted point).
   bool turned_point_valid(const double* x, int32_t num_groups);
   // Convergence bookkeeping: a converged island's vertices share a token (islands.hpp numbers
   // change from iteration to iteration; tokens say "this exact island converged").
@@ -186,7 +192,10 @@ class NewtonSolver {
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;
   std::vector<double> straight_, turn_motion_;  // (3n) turned trial: the straight point, the turn
-  std::vector<uint8_t> turn_moves_;             // (n) vertices the turn moves
+  std::vector<double> turn_pads_;               // (num_vertices) CoordinateMap::turn_pads, at most turn_reach_
+  std::vector<uint8_t> turn_moves_;             // (num_vertices) turned beyond their pads
+  bool turn_swept_ = false;                     // turned_point_valid searched the turn's pairs
+  double turn_reach_ = 0.0;                     // NewtonSettings::turn_reach of the solve
 };
 
 }  // namespace nexdyn

@@ -36,7 +36,10 @@ class BarrierTerm final : public PotentialTerm {
   }
   const std::vector<int32_t>* coupling_stencils() const override { return &contact_.stencils(); }
 
-  void sweep(const double* x, const double* p, const uint8_t* moving) override { contact_.sweep(x, p, moving); }
+  void sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) override {
+    contact_.sweep(x, p, moving, pad);
+  }
+  void move_sweep_end(const double* x, const double* p) override { contact_.move_sweep_end(x, p); }
   const ContactCandidates* swept_pairs() const override { return &contact_.candidates(); }
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) override {
     contact_.group_max_steps(x, group_of_vertex, alpha);

@@ -295,3 +295,63 @@ TEST_CASE("coordinate map: a turned trial rotates a rigid body rigidly and agree
     }
   }
 }
+
+TEST_CASE("coordinate map: turn pads bound how far every turned trial leaves the chord") {
+  // Body A (nodes 6..9) at a stretched rotation, its direction a turn by theta (up to past pi)
+  // plus a stretch; the line search takes any alpha of a direction that the CCD may have scaled
+  // down. Each follower's turned trial stays within its pad of the chord point, and for a pure
+  // turn the pad is within a factor of 2 of the largest gap (a bound that cannot be loose by
+  // more: |R - I - W| u reaches sqrt(a^2 + b^2) for u across the axis, the pad a + b).
+  std::mt19937_64 rng(23);
+  const Model model = two_affine_bodies(rng);
+  const CoordinateMap map(model);
+  const int n = 3 * model.num_vertices;
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<int32_t> group(model.num_vertices, -1);
+  for (int v : {3, 4, 5, 6, 7, 8, 9}) group[v] = 0;
+  std::vector<uint8_t> moves(model.num_vertices, 0);
+  moves[6] = 1;
+  for (double theta : {0.05, 1.0, 2.5, 4.0}) {
+    for (double stretch : {0.0, 0.05}) {
+      CAPTURE(theta);
+      CAPTURE(stretch);
+      const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+      const Eigen::Vector3d w = theta * axis;
+      const Eigen::Matrix3d W = (Eigen::Matrix3d() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
+      Eigen::Matrix3d E = Eigen::Matrix3d::NullaryExpr([&] { return stretch * u(rng); });
+      E = 0.5 * (E + E.transpose()).eval();
+      const Eigen::Matrix3d C0 = rotation({u(rng), u(rng), u(rng)}) * (Eigen::Matrix3d::Identity() + 0.1 * E);
+      std::vector<double> x(n, 0.0), d(n, 0.0);
+      for (int i = 0; i < n; ++i) x[i] = u(rng);
+      Eigen::Vector3d::Map(&d[3 * 6]) = Eigen::Vector3d(u(rng), u(rng), u(rng));
+      for (int j = 0; j < 3; ++j) {
+        Eigen::Vector3d::Map(&x[3 * (7 + j)]) = C0.col(j);
+        Eigen::Vector3d::Map(&d[3 * (7 + j)]) = ((W + E) * C0).col(j);
+      }
+      map.follow(x.data());
+      map.follow(d.data());
+      std::vector<double> pad(model.num_vertices, -1.0);
+      map.turn_pads(x.data(), d.data(), moves.data(), pad.data());
+      for (int v = 0; v < model.num_vertices; ++v)
+        if (v < 3 || v > 5) CHECK(pad[v] == 0.0);  // tet vertices, nodes and the still body B
+      double tightest = 0.0;
+      for (double scale : {1.0, 0.5, 0.1}) {
+        std::vector<double> scaled = d;
+        for (double& di : scaled) di *= scale;
+        for (int k = 1; k <= 20; ++k) {
+          const double alpha = k / 20.0;
+          std::vector<double> trial(n);
+          for (int i = 0; i < n; ++i) trial[i] = group[i / 3] < 0 ? x[i] : x[i] + alpha * scaled[i];
+          const std::vector<double> chord = trial;
+          map.turn(x.data(), scaled.data(), group.data(), &alpha, trial.data());
+          for (int v = 3; v <= 5; ++v) {
+            const double gap = (Eigen::Vector3d::Map(&trial[3 * v]) - Eigen::Vector3d::Map(&chord[3 * v])).norm();
+            CHECK(gap <= pad[v] * (1.0 + 1e-12));
+            tightest = std::max(tightest, gap / pad[v]);
+          }
+        }
+      }
+      if (stretch == 0.0) CHECK(tightest > 0.5);
+    }
+  }
+}
