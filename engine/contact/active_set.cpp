@@ -111,7 +111,11 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
         continue;
       uint8_t code = 0;
       double d = kInf;
-      if (i < nvt + nee) {
+      const bool primitives = i < nvt + nee;  // (else a vertex-plane pair)
+      const double gap2 = primitives ? pair_geometry::box_gap_squared(x, nullptr, s, i < nvt ? 1 : 2) : 0.0;
+      if (gap2 > pair_geometry::kFarMargin * dhat2_) {
+        d = gap2;  // beyond dhat: inactive, its distance at least this
+      } else if (primitives) {
         const Eigen::Vector3d X0 = point(x, s[0]), X1 = point(x, s[1]);
         const Eigen::Vector3d X2 = point(x, s[2]), X3 = point(x, s[3]);
         if (i < nvt) {

@@ -6,7 +6,9 @@
 //   * a per-candidate cache: each pair's squared distance and closest feature at the positions it
 //     was last computed at. A Newton iteration moves only the islands not yet converged, so most
 //     pairs keep their numbers from one iteration to the next; refresh() recomputes only the pairs
-//     that are new or have a vertex whose position changed (compared exactly);
+//     that are new or have a vertex whose position changed (compared exactly). A pair whose
+//     primitives' bounding boxes are farther apart than dhat is inactive without its distance
+//     kernel: its cached distance is then that box gap, a lower bound (at least dhat^2);
 //   * the stencils, one per closest feature rather than one per active pair: a vertex facing a
 //     vertex of another surface is the closest point of several vertex-triangle and edge-edge
 //     pairs, all with the same point-point distance, so their barriers are the same number. Pairs
@@ -53,7 +55,8 @@ class ContactActiveSet {
   void carry_pairs(int64_t old_size, const std::vector<int64_t>& origin);
   // Brings every candidate's squared distance and closest feature up to date at x.
   void refresh(const ContactCandidates& candidates, const double* x);
-  // Smallest squared distance over the candidates at x (refreshes; +inf without candidates).
+  // Smallest squared distance over the candidates at x (refreshes; +inf without candidates):
+  // exact when below dhat^2, else a lower bound that is at least dhat^2 (see the top).
   double min_squared_distance(const ContactCandidates& candidates, const double* x);
 
   // ---- stencils

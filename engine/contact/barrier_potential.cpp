@@ -18,7 +18,9 @@
 
 namespace nexdyn {
 
+using pair_geometry::box_gap_squared;
 using pair_geometry::edge_edge_threshold;
+using pair_geometry::kFarMargin;
 using pair_geometry::kPairGrain;
 using pair_geometry::point;
 
@@ -84,13 +86,20 @@ bool BarrierPotential::incremental_search(const double* x, const double* p) {
 
 namespace {
 
-// Squared distance and barrier value of one pair. The value is +inf for d <= 0.
 struct PairEval {
   double d = kInf;
   double energy = 0.0;
 };
 
+// Squared distance and barrier value of one pair. The value is +inf for d <= 0. With kEnergyOnly
+// (the energy sums), a pair whose boxes are farther apart than dhat (pair_geometry.hpp) gets 0 and
+// its box gap as d, a lower bound, without the distance kernel.
+template <bool kEnergyOnly>
 PairEval eval_vertex_triangle(const Model& m, const double* x, const IndexPair& pair, double dhat2) {
+  if (kEnergyOnly) {
+    const double gap2 = box_gap_squared(x, nullptr, vertex_triangle_vertices(m, pair), 1);
+    if (gap2 > kFarMargin * dhat2) return PairEval{gap2, 0.0};
+  }
   const int32_t* t = &m.surface_triangles[3 * int64_t{pair.second}];
   PairEval e;
   e.d = point_triangle_distance(point(x, pair.first), point(x, t[0]), point(x, t[1]), point(x, t[2]));
@@ -98,7 +107,12 @@ PairEval eval_vertex_triangle(const Model& m, const double* x, const IndexPair& 
   return e;
 }
 
+template <bool kEnergyOnly>
 PairEval eval_edge_edge(const Model& m, const double* x, const IndexPair& pair, double dhat2) {
+  if (kEnergyOnly) {
+    const double gap2 = box_gap_squared(x, nullptr, edge_edge_vertices(m, pair), 2);
+    if (gap2 > kFarMargin * dhat2) return PairEval{gap2, 0.0};
+  }
   const int32_t* ea = &m.surface_edges[2 * int64_t{pair.first}];
   const int32_t* eb = &m.surface_edges[2 * int64_t{pair.second}];
   const Eigen::Vector3d a0 = point(x, ea[0]), a1 = point(x, ea[1]);
@@ -139,17 +153,19 @@ T reduce_pairs(const Model& m, const ContactCandidates& c, const double* x, doub
     }, 1);
     for (const T& p : partial) result = reduce.combine(result, p);
   };
-  over(c.vertex_triangle, eval_vertex_triangle);
-  over(c.edge_edge, eval_edge_edge);
+  over(c.vertex_triangle, eval_vertex_triangle<Reduce::kEnergyOnly>);
+  over(c.edge_edge, eval_edge_edge<Reduce::kEnergyOnly>);
   over(c.vertex_plane, eval_vertex_plane);
   return result;
 }
 
 struct SumEnergy {
+  static constexpr bool kEnergyOnly = true;
   double operator()(double acc, const PairEval& e) const { return acc + e.energy; }
   double combine(double a, double b) const { return a + b; }
 };
 struct MinDistance {
+  static constexpr bool kEnergyOnly = false;
   double operator()(double acc, const PairEval& e) const { return std::min(acc, e.d); }
   double combine(double a, double b) const { return std::min(a, b); }
 };
@@ -158,6 +174,7 @@ struct Totals {
   double energy = 0.0, active = 0.0, min_d = kInf;
 };
 struct SumCountMin {
+  static constexpr bool kEnergyOnly = false;
   double dhat2;
   Totals operator()(Totals acc, const PairEval& e) const {
     return {acc.energy + e.energy, acc.active + (e.d < dhat2 ? 1.0 : 0.0), std::min(acc.min_d, e.d)};
@@ -244,8 +261,8 @@ void BarrierPotential::group_energy(const double* x, const int32_t* group_of_ver
   };
   const ContactCandidates& c = candidates_;
   over(c.vertex_triangle, [&](const IndexPair& pr) { return vertex_triangle_vertices(model_, pr); },
-       eval_vertex_triangle);
-  over(c.edge_edge, [&](const IndexPair& pr) { return edge_edge_vertices(model_, pr); }, eval_edge_edge);
+       eval_vertex_triangle<true>);
+  over(c.edge_edge, [&](const IndexPair& pr) { return edge_edge_vertices(model_, pr); }, eval_edge_edge<true>);
   over(c.vertex_plane, vertex_plane_vertices, eval_vertex_plane);
 }
 

@@ -84,7 +84,8 @@ class BarrierPotential {
   // with a touching pair gets +inf.
   void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
   // Smallest squared distance over the candidates (squared signed distance for planes, 0 behind
-  // one); +inf without candidates.
+  // one); +inf without candidates. Exact below dhat^2; above it, a lower bound that is at least
+  // dhat^2 (active_set.hpp), which is all the stiffness update and the contact test ask.
   double min_squared_distance(const double* x);
 
   // The contact columns of stats.csv at x: the barrier sum, the number of pairs closer than dhat,

@@ -12,6 +12,8 @@
 
 namespace nexdyn {
 
+using pair_geometry::box_gap_squared;
+using pair_geometry::kFarMargin;
 using pair_geometry::kPairGrain;
 using pair_geometry::point;
 
@@ -90,6 +92,9 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
   ProfileScope scope(profile_, StepPhase::ccd);
   const double* y = x1_.data();
   const double min_distance = kCcdGapFraction * dhat_;
+  // A pair whose paths' boxes stay farther apart than the CCD's gap never comes that close: the
+  // CCD would find nothing (pair_geometry.hpp).
+  const double far_gap2 = (kFarMargin * min_distance) * (kFarMargin * min_distance);
   const ContactCandidates& c = candidates_;
   // The group a pair belongs to: that of its first moving vertex (all its moving vertices share
   // one, by the caller's promise); -1 when none of them moves.
@@ -128,6 +133,7 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
     return group_of(vertex_triangle_vertices(model_, c.vertex_triangle[i]));
   }, [&](int64_t i, double tmax, double& toi) {
     const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
+    if (box_gap_squared(x, y, s, 1) > far_gap2) return false;
     return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                               point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
@@ -136,6 +142,7 @@ void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_
     return group_of(edge_edge_vertices(model_, c.edge_edge[i]));
   }, [&](int64_t i, double tmax, double& toi) {
     const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i]);
+    if (box_gap_squared(x, y, s, 2) > far_gap2) return false;
     return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                          point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);

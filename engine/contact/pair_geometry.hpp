@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cstdint>
 
 namespace nexdyn::pair_geometry {
@@ -33,6 +34,38 @@ inline double vertex_plane_squared_distance(const Model& m, const double* x, con
   const double s = (point(x, pair.first) - plane.point).dot(plane.normal);
   return s > 0.0 ? s * s : 0.0;
 }
+
+// The squared gap between the bounding boxes of a pair's two primitives, vertices s[0, na) and
+// s[na, 4) at x0 (and at x1 too when it is given: then the boxes hold the linear paths from x0
+// to x1); 0 where the boxes overlap. No point of one primitive comes closer to the other than
+// this, so a pair whose gap is beyond a distance of interest needs no distance kernel: the
+// energy, active-set and CCD passes skip such pairs with a margin (kFarMargin) far above the
+// kernels' rounding, so they decide as the kernels would. It costs a few comparisons where a
+// distance costs branches, cross products and square roots, and most candidates of a landing
+// pile are such pairs (they were found for a whole Newton step, or padded for its turns).
+inline double box_gap_squared(const double* x0, const double* x1, const PairVertices& s, int na) {
+  double gap2 = 0.0;
+  for (int d = 0; d < 3; ++d) {
+    double lo[2] = {x0[3 * int64_t{s[0]} + d], x0[3 * int64_t{s[na]} + d]};
+    double hi[2] = {lo[0], lo[1]};
+    for (int k = 0; k < 4; ++k) {
+      const int side = k < na ? 0 : 1;
+      for (const double* x : {x0, x1}) {
+        if (!x) continue;
+        const double c = x[3 * int64_t{s[k]} + d];
+        lo[side] = std::min(lo[side], c);
+        hi[side] = std::max(hi[side], c);
+      }
+    }
+    const double gap = std::max({0.0, lo[1] - hi[0], lo[0] - hi[1]});
+    gap2 += gap * gap;
+  }
+  return gap2;
+}
+
+// Relative margin of the skips above: a pair is skipped only when its box gap passes the
+// distance of interest by this factor, far beyond the distance kernels' relative rounding.
+inline constexpr double kFarMargin = 1.0 + 1e-6;
 
 // The PairVertices (candidates.hpp) of candidate i of the concatenated lists (vertex-triangle,
 // then edge-edge, then vertex-plane).
