@@ -457,26 +457,31 @@ bool NewtonSolver::turned_point_valid(const double* x, int32_t num_groups) {
   const int64_t n = model_.num_dofs();
   straight_.resize(n);
   turn_motion_.resize(n);
-  bool any = false;
   for (int64_t i = 0; i < n; ++i) {
     const int32_t g = group_of_vertex_[i / 3];
     straight_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
     turn_motion_[i] = trial_[i] - straight_[i];
-    any |= turn_motion_[i] != 0.0;
+  }
+  // The vertices the turn moves (group 0 of the CCD below: the pairs without one stay where they
+  // are, apart, and need no CCD), and those it takes beyond their pads.
+  turn_moves_.assign(model_.num_vertices, 0);
+  turn_group_.assign(model_.num_vertices, -1);
+  bool any = false;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const Eigen::Vector3d off = Eigen::Vector3d::Map(&turn_motion_[3 * int64_t{v}]);
+    if (off.isZero(0.0)) continue;
+    any = true;
+    turn_group_[v] = 0;
+    if (model_.axis_node(v)) continue;  // a column of A: no point, in no contact pair
+    if (off.norm() > turn_pads_[v]) turn_moves_[v] = 1, turn_swept_ = true;
   }
   if (!any) return true;
-  turn_moves_.assign(model_.num_vertices, 0);
-  for (int32_t v = 0; v < model_.num_vertices; ++v) {
-    if (model_.axis_node(v)) continue;  // a column of A: no point, in no contact pair
-    const double off = Eigen::Vector3d::Map(&turn_motion_[3 * int64_t{v}]).norm();
-    if (off > turn_pads_[v]) turn_moves_[v] = 1, turn_swept_ = true;
-  }
   if (turn_swept_)  // (the others move too, within their pads: their kept pairs cover them)
     potential_.sweep(straight_.data(), turn_motion_.data(), turn_moves_.data());
   else
     potential_.move_sweep_end(straight_.data(), turn_motion_.data());
   double alpha = 1.0;
-  potential_.group_max_steps(straight_.data(), nullptr, &alpha);
+  potential_.group_max_steps(straight_.data(), turn_group_.data(), &alpha);
   if (alpha < 1.0) return false;
   if (!turn_swept_) return true;
   potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());

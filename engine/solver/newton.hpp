@@ -194,6 +194,7 @@ class NewtonSolver {
   std::vector<double> straight_, turn_motion_;  // (3n) turned trial: the straight point, the turn
   std::vector<double> turn_pads_;               // (num_vertices) CoordinateMap::turn_pads, at most turn_reach_
   std::vector<uint8_t> turn_moves_;             // (num_vertices) turned beyond their pads
+  std::vector<int32_t> turn_group_;             // (num_vertices) 0 where the turn moves, else -1
   bool turn_swept_ = false;                     // turned_point_valid searched the turn's pairs
   double turn_reach_ = 0.0;                     // NewtonSettings::turn_reach of the solve
 };
