@@ -295,10 +295,12 @@ void CoordinateMap::map_slabs(const std::vector<int32_t>& stencils, const std::v
         const int64_t s = source[i];
         const int64_t size = slab_begin[s + 1] - slab_begin[s];
         K = stencil_nodes_of(&stencils[4 * s], size, vertices, nodes);
-        map_stencil_hessian(vertices, width_of_slab(size), slabs + slab_begin[s], nodes, K, i == 0 ? sum : one);
+        map_stencil_hessian_upper(vertices, width_of_slab(size), slabs + slab_begin[s], nodes, K, i == 0 ? sum : one);
         if (i > 0)
-          for (int e = 0; e < 9 * K * K; ++e) sum[e] += one[e];
+          for (int c = 0, N = 3 * K; c < N; ++c)
+            for (int r = 0; r <= c; ++r) sum[c * N + r] += one[c * N + r];
       }
+      mirror_upper(sum, K);
       const int N = 3 * K;
       for (int64_t sub = mapped.first[g]; sub < mapped.first[g + 1]; ++sub) {
         const int local = static_cast<int>(sub - mapped.first[g]);

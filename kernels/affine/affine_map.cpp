@@ -26,13 +26,13 @@ int stencil_nodes(const VertexNodes* vertices, int k, int32_t* nodes) {
   return K;
 }
 
-void map_stencil_hessian(const VertexNodes* vertices, int k, const double* slab, const int32_t* nodes, int K,
-                         double* mapped) {
+void map_stencil_hessian_upper(const VertexNodes* vertices, int k, const double* slab, const int32_t* nodes, int K,
+                               double* mapped) {
   const int n = 3 * k, N = 3 * K;
   int local[4][4];
   for (int i = 0; i < k; ++i)
     for (int t = 0; t < vertices[i].count; ++t) local[i][t] = local_node(nodes, K, vertices[i].node[t]);
-  std::fill(mapped, mapped + N * N, 0.0);
+  for (int c = 0; c < N; ++c) std::fill(mapped + c * N, mapped + c * N + c + 1, 0.0);
   // The upper triangle, block (a, b) with a <= b: H_ij's share in it is w_ia w_jb H_ij (the
   // blocks a > b get theirs from H_ji by the mirror below).
   for (int j = 0; j < k; ++j)
@@ -48,8 +48,18 @@ void map_stencil_hessian(const VertexNodes* vertices, int k, const double* slab,
               mapped[(3 * b + s) * N + 3 * a + r] += w * slab[(3 * j + s) * n + 3 * i + r];
         }
     }
+}
+
+void mirror_upper(double* mapped, int K) {
+  const int N = 3 * K;
   for (int c = 0; c < N; ++c)
     for (int r = c + 1; r < N; ++r) mapped[c * N + r] = mapped[r * N + c];
+}
+
+void map_stencil_hessian(const VertexNodes* vertices, int k, const double* slab, const int32_t* nodes, int K,
+                         double* mapped) {
+  map_stencil_hessian_upper(vertices, k, slab, nodes, K, mapped);
+  mirror_upper(mapped, K);
 }
 
 void map_stencil_gradient(const VertexNodes* vertices, int k, const double* gradient, const int32_t* nodes, int K,

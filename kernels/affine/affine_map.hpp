@@ -39,6 +39,12 @@ int stencil_nodes(const VertexNodes* vertices, int k, int32_t* nodes);
 // is: each mapped entry sums the same products in the same order as its mirror.
 void map_stencil_hessian(const VertexNodes* vertices, int k, const double* slab, const int32_t* nodes, int K,
                          double* mapped);
+// The same in two parts, for sums of several stencils over one node set: the upper triangle
+// (row <= column; the rest of `mapped` is left as it was), then its mirror into the lower one.
+// Upper triangles summed, then mirrored once, equal the sum of the mirrored ones bit for bit.
+void map_stencil_hessian_upper(const VertexNodes* vertices, int k, const double* slab, const int32_t* nodes, int K,
+                               double* mapped);
+void mirror_upper(double* mapped, int K);
 
 // J^T g: `gradient` (3k) over the k vertices, `mapped` (3K) over the K nodes.
 void map_stencil_gradient(const VertexNodes* vertices, int k, const double* gradient, const int32_t* nodes, int K,

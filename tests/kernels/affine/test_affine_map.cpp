@@ -145,3 +145,35 @@ TEST_CASE("affine map: a stencil over more than eight nodes is refused") {
   CHECK(stencil_nodes(vertices, 2, nodes) == 8);
   CHECK(stencil_nodes(vertices, 3, nodes) == -1);
 }
+
+TEST_CASE("affine map: upper triangles summed and mirrored once equal the sum of whole maps, bit for bit") {
+  // CoordinateMap::map_slabs sums the contacts of one pair of bodies this way.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto random3 = [&] { return Eigen::Vector3d(u(rng), u(rng), u(rng)); };
+  const int K = 8;
+  const int32_t nodes[K] = {20, 21, 22, 23, 40, 41, 42, 43};
+  Eigen::MatrixXd whole = Eigen::MatrixXd::Zero(3 * K, 3 * K), summed(3 * K, 3 * K), one(3 * K, 3 * K);
+  summed.setConstant(std::nan(""));  // the lower triangle is never read before the mirror writes it
+  for (int s = 0; s < 5; ++s) {
+    // A point of body 40 against a triangle of body 20, or an edge of each.
+    std::vector<VertexNodes> vertices;
+    if (s % 2)
+      vertices = {affine_vertex(40, random3()), affine_vertex(20, random3()), affine_vertex(20, random3()),
+                  affine_vertex(20, random3())};
+    else
+      vertices = {affine_vertex(20, random3()), affine_vertex(20, random3()), affine_vertex(40, random3()),
+                  affine_vertex(40, random3())};
+    Eigen::MatrixXd A = Eigen::MatrixXd::NullaryExpr(12, 12, [&] { return u(rng); });
+    const Eigen::MatrixXd H = A + A.transpose();
+    map_stencil_hessian(vertices.data(), 4, H.data(), nodes, K, one.data());
+    whole += one;
+    map_stencil_hessian_upper(vertices.data(), 4, H.data(), nodes, K, s == 0 ? summed.data() : one.data());
+    if (s > 0)
+      for (int c = 0; c < 3 * K; ++c)
+        for (int r = 0; r <= c; ++r) summed(r, c) += one(r, c);
+  }
+  mirror_upper(summed.data(), K);
+  CHECK(summed == whole);
+  CHECK(summed.norm() > 0.0);
+}
