@@ -1,0 +1,133 @@
+// The Newton solver's line search (see newton.hpp): per group of islands, backtracking from the
+// CCD-capped step; with affine bodies, the turned trial point first and the straight one if the
+// turn fails. The rest of the solve is in newton.cpp.
+#include "engine/solver/newton.hpp"
+
+#include "engine/parallel.hpp"
+#include "engine/stop_request.hpp"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace nexdyn {
+
+namespace {
+// Armijo sufficient-decrease constant and the smallest step length tried before giving up.
+constexpr double kArmijo = 1e-4;
+constexpr double kMinStepLength = 1e-10;
+}  // namespace
+
+bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult& result) {
+  if (model_.affine_bodies.empty()) return line_search_pass(x, num_groups, false, result);
+  // Affine bodies turn along their step (CoordinateMap::turn): along the chord C + alpha D a body
+  // turned by theta is stretched by theta^2 / 2, which the orthogonality potential charges
+  // kappa V theta^4 and the quadratic model cannot see (its Hessian is flat along rotations), so
+  // the search halved the steps of turning bodies over tens of iterations. If the turned point
+  // fails (a turn into a contact, or no decrease once its pairs are known), the straight search.
+  NewtonResult turned = result;
+  turn_swept_ = false;
+  if (line_search_pass(x, num_groups, true, turned) && turned_point_valid(x, num_groups)) return true;
+  // The vertices whose turns were searched get the straight step's pairs again.
+  if (turn_swept_) potential_.sweep(x, direction_.data(), turn_moves_.data(), turn_pads_.data());
+  return line_search_pass(x, num_groups, false, result);
+}
+
+bool NewtonSolver::turned_point_valid(const double* x, int32_t num_groups) {
+  // The turned trial is off the swept segment x -> x + alpha p by the turn's motion (second order
+  // in alpha theta). Where that motion is within a vertex's pad, build_groups' sweep covers it;
+  // the vertices it takes further (a turn beyond the reach) have their pairs searched again along
+  // the turn from the straight point, and then the line search's energies, which missed those
+  // pairs, are taken again. Either way a CCD over the turn tells whether the trial is reached
+  // without crossing a contact.
+  if (!potential_.sweep_candidates()) return true;  // no contact
+  const int64_t n = model_.num_dofs();
+  straight_.resize(n);
+  turn_motion_.resize(n);
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t g = group_of_vertex_[i / 3];
+    straight_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
+    turn_motion_[i] = trial_[i] - straight_[i];
+  }
+  // The vertices the turn moves (group 0 of the CCD below: the pairs without one stay where they
+  // are, apart, and need no CCD), and those it takes beyond their pads.
+  turn_moves_.assign(model_.num_vertices, 0);
+  turn_group_.assign(model_.num_vertices, -1);
+  bool any = false;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const Eigen::Vector3d off = Eigen::Vector3d::Map(&turn_motion_[3 * int64_t{v}]);
+    if (off.isZero(0.0)) continue;
+    any = true;
+    turn_group_[v] = 0;
+    if (model_.axis_node(v)) continue;  // a column of A: no point, in no contact pair
+    if (off.norm() > turn_pads_[v]) turn_moves_[v] = 1, turn_swept_ = true;
+  }
+  if (!any) return true;
+  if (turn_swept_)  // (the others move too, within their pads: their kept pairs cover them)
+    potential_.sweep(straight_.data(), turn_motion_.data(), turn_moves_.data());
+  else
+    potential_.move_sweep_end(straight_.data(), turn_motion_.data());
+  double alpha = 1.0;
+  potential_.group_max_steps(straight_.data(), turn_group_.data(), &alpha);
+  if (alpha < 1.0) return false;
+  if (!turn_swept_) return true;
+  potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+  for (int32_t k = 0; k < num_groups; ++k)
+    if (!sufficient_decrease(k)) return false;
+  return true;
+}
+
+bool NewtonSolver::sufficient_decrease(int32_t k) const {
+  const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
+  return group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise;
+}
+
+bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result) {
+  // Backtracking, group by group: the energy is a sum over groups plus terms that do not move, so
+  // each group halves its own step until its own part of E decreases enough. Energies are
+  // compared with a round-off allowance: near the minimum the decrease s*alpha*g.p can be smaller
+  // than the error of summing E itself. The accepted point is left in trial_; with `turn` the
+  // affine bodies' trial points are turned (line_search).
+  ProfileScope scope(profile_, StepPhase::line_search);
+  const int64_t n = model_.num_dofs();
+  group_start_.resize(num_groups);
+  group_trial_.resize(num_groups);
+  potential_.group_energy(x, group_of_vertex_.data(), num_groups, group_start_.data());
+  std::fill(group_alpha_.begin(), group_alpha_.end(), 1.0);
+  group_done_.assign(num_groups, 0);
+  int32_t pending = num_groups;
+  while (pending > 0) {
+    stop_point();
+    parallel_for(n, [&](int64_t begin, int64_t end) {
+      for (int64_t i = begin; i < end; ++i) {
+        const int32_t g = group_of_vertex_[i / 3];
+        trial_[i] = g < 0 ? x[i] : x[i] + group_alpha_[g] * direction_[i];
+      }
+    }, 8192);
+    if (turn) potential_.map().turn(x, direction_.data(), group_of_vertex_.data(), group_alpha_.data(), trial_.data());
+    potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+    for (int32_t k = 0; k < num_groups; ++k) {
+      if (group_done_[k]) continue;
+      if (sufficient_decrease(k)) {
+        group_done_[k] = 1;
+        --pending;
+        continue;
+      }
+      group_alpha_[k] *= 0.5;
+      if (group_alpha_[k] < kMinStepLength) {
+        result.status = StepStatus::line_search_failed;
+        char message[160];
+        std::snprintf(message, sizeof(message),
+                      "line search found no decrease along the Newton direction (increment %.3g m/s, energy %.6g)",
+                      result.increment, group_start_[k]);
+        result.message = message;
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace nexdyn
