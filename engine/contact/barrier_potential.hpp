@@ -148,6 +148,13 @@ class BarrierPotential {
   // pad[v] of the segment.
   void sweep(const double* x, const double* p, const uint8_t* moving = nullptr, const double* pad = nullptr);
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
+  // group_max_steps() for groups that pairs may link (the islands of a Newton step): each group
+  // is capped by its own pairs and by the pairs linking it to others (checked along the whole
+  // motion); the groups then move by different fractions of their motions, and the linking pairs
+  // are checked again along the motion those fractions give together. A pair that would come too
+  // close lowers its groups to the smallest fraction among them, until no pair does (at worst,
+  // every group of a linked set takes the set's smallest cap, as if they were one group).
+  void linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups, double* alpha);
   // The next group_max_steps() checks the motion x -> x + p over the pairs of the last sweep,
   // without searching again: the caller promises that this path lies within that sweep's pads.
   void move_sweep_end(const double* x, const double* p);
@@ -194,6 +201,16 @@ class BarrierPotential {
   std::vector<int64_t> origin_;      // (candidates) index in the old lists, -1 = fresh
   // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)
   std::vector<std::vector<std::pair<int32_t, double>>> run_minima_;
+  // linked_max_steps(): the pairs linking groups (indices into the concatenated lists), per chunk
+  // and all, each one's time of impact along the whole motion, whether each collides along the
+  // scaled motion, the fractions after a round, the scaled ends (3n).
+  std::vector<int64_t> links_;
+  std::vector<std::vector<int64_t>> link_chunks_;
+  std::vector<double> link_toi_;
+  std::vector<uint8_t> link_hits_;
+  std::vector<double> settled_, scaled_end_;
+  // The conservative CCD of candidate i (index into the concatenated lists) from x to y.
+  bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi) const;
 };
 
 }  // namespace nexdyn

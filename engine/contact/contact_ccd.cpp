@@ -9,10 +9,12 @@
 #include "kernels/ccd/ccd.hpp"
 
 #include <algorithm>
+#include <array>
 
 namespace nexdyn {
 
 using pair_geometry::box_gap_squared;
+using pair_geometry::candidate_vertices;
 using pair_geometry::kFarMargin;
 using pair_geometry::kPairGrain;
 using pair_geometry::point;
@@ -88,73 +90,182 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   active_.carry_pairs(old_size, origin_);
 }
 
-void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
-  ProfileScope scope(profile_, StepPhase::ccd);
-  const double* y = x1_.data();
+namespace {
+
+// The distinct groups of a pair's moving vertices, in vertex order, padded with -1 (all -1: none
+// of its vertices moves). Without a group_of_vertex every moving pair is in group 0.
+std::array<int32_t, 4> groups_of(const PairVertices& vertices, const int32_t* group_of_vertex) {
+  std::array<int32_t, 4> groups = {-1, -1, -1, -1};
+  if (!group_of_vertex) {
+    groups[0] = 0;
+    return groups;
+  }
+  int count = 0;
+  for (int32_t v : vertices) {
+    if (v < 0 || group_of_vertex[v] < 0) continue;
+    const int32_t g = group_of_vertex[v];
+    if (std::find(groups.begin(), groups.begin() + count, g) == groups.begin() + count) groups[count++] = g;
+  }
+  return groups;
+}
+
+}  // namespace
+
+bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi) const {
+  const ContactCandidates& c = candidates_;
   const double min_distance = kCcdGapFraction * dhat_;
   // A pair whose paths' boxes stay farther apart than the CCD's gap never comes that close: the
   // CCD would find nothing (pair_geometry.hpp).
   const double far_gap2 = (kFarMargin * min_distance) * (kFarMargin * min_distance);
-  const ContactCandidates& c = candidates_;
-  // The group a pair belongs to: that of its first moving vertex (all its moving vertices share
-  // one, by the caller's promise); -1 when none of them moves.
-  auto group_of = [&](const PairVertices& vertices) {
-    if (!group_of_vertex) return 0;
-    for (int32_t v : vertices)
-      if (v >= 0 && group_of_vertex[v] >= 0) return group_of_vertex[v];
-    return -1;
-  };
-
-  // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
-  // of one group passes its running minimum as tmax to cut work short. Each run leaves one
-  // (group, time) result, and the results are combined in chunk order: the same on any thread
-  // count.
-  auto earliest = [&](int64_t count, auto&& group, auto&& ccd) {
-    const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
-    run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
-    parallel_for(chunks, [&](int64_t cb, int64_t ce) {
-      for (int64_t k = cb; k < ce; ++k) {
-        stop_point();
-        std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
-        runs.clear();
-        for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
-          const int32_t g = group(i);
-          if (g < 0) continue;
-          if (runs.empty() || runs.back().first != g) runs.emplace_back(g, 1.0);
-          double toi = 1.0;
-          if (ccd(i, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
-        }
-      }
-    }, 1);
-    for (int64_t k = 0; k < chunks; ++k)
-      for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
-  };
-  earliest(static_cast<int64_t>(c.vertex_triangle.size()), [&](int64_t i) {
-    return group_of(vertex_triangle_vertices(model_, c.vertex_triangle[i]));
-  }, [&](int64_t i, double tmax, double& toi) {
+  const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
+  const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
+  if (i < nvt) {
     const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
     if (box_gap_squared(x, y, s, 1) > far_gap2) return false;
     return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                               point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
-  });
-  earliest(static_cast<int64_t>(c.edge_edge.size()), [&](int64_t i) {
-    return group_of(edge_edge_vertices(model_, c.edge_edge[i]));
-  }, [&](int64_t i, double tmax, double& toi) {
-    const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i]);
+  }
+  if (i < nvt + nee) {
+    const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i - nvt]);
     if (box_gap_squared(x, y, s, 2) > far_gap2) return false;
     return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                          point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);
-  });
-  earliest(static_cast<int64_t>(c.vertex_plane.size()), [&](int64_t i) {
-    return group_of(vertex_plane_vertices(c.vertex_plane[i]));
-  }, [&](int64_t i, double tmax, double& toi) {
-    const IndexPair& pr = c.vertex_plane[i];
-    const ObstaclePlane& plane = model_.obstacle_planes[pr.second];
-    return point_plane_ccd(point(x, pr.first), point(y, pr.first), plane.point, plane.normal,
-                           min_distance, tmax, toi);
-  });
+  }
+  const IndexPair& pr = c.vertex_plane[i - nvt - nee];
+  const ObstaclePlane& plane = model_.obstacle_planes[pr.second];
+  return point_plane_ccd(point(x, pr.first), point(y, pr.first), plane.point, plane.normal, min_distance, tmax,
+                         toi);
+}
+
+void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
+  const double* y = x1_.data();
+  const ContactCandidates& c = candidates_;
+  // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
+  // of one group passes its running minimum as tmax to cut work short. Each run leaves one
+  // (group, time) result, and the results are combined in chunk order: the same on any thread
+  // count. A pair's group is that of its first moving vertex (all its moving vertices share one,
+  // by the caller's promise).
+  const int64_t count = c.size();
+  const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
+  run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
+  parallel_for(chunks, [&](int64_t cb, int64_t ce) {
+    for (int64_t k = cb; k < ce; ++k) {
+      stop_point();
+      std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
+      runs.clear();
+      for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
+        const int32_t g = groups_of(candidate_vertices(model_, c, i), group_of_vertex)[0];
+        if (g < 0) continue;
+        if (runs.empty() || runs.back().first != g) runs.emplace_back(g, 1.0);
+        double toi = 1.0;
+        if (pair_ccd(i, x, y, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
+      }
+    }
+  }, 1);
+  for (int64_t k = 0; k < chunks; ++k)
+    for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
+}
+
+void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
+                                        double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
+  const double* y = x1_.data();
+  const ContactCandidates& c = candidates_;
+  const int64_t count = c.size();
+  const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
+  run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
+  link_chunks_.resize(std::max<size_t>(link_chunks_.size(), chunks));
+
+  // 1. Each group's own pairs (their moving vertices all in it), as in group_max_steps; the pairs
+  // that link groups are set aside, per chunk, in pair order.
+  parallel_for(chunks, [&](int64_t cb, int64_t ce) {
+    for (int64_t k = cb; k < ce; ++k) {
+      stop_point();
+      std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
+      runs.clear();
+      link_chunks_[k].clear();
+      for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
+        const std::array<int32_t, 4> groups = groups_of(candidate_vertices(model_, c, i), group_of_vertex);
+        if (groups[0] < 0) continue;
+        if (groups[1] >= 0) {
+          link_chunks_[k].push_back(i);
+          continue;
+        }
+        if (runs.empty() || runs.back().first != groups[0]) runs.emplace_back(groups[0], 1.0);
+        double toi = 1.0;
+        if (pair_ccd(i, x, y, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
+      }
+    }
+  }, 1);
+  links_.clear();
+  for (int64_t k = 0; k < chunks; ++k) {
+    for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
+    links_.insert(links_.end(), link_chunks_[k].begin(), link_chunks_[k].end());
+  }
+  if (links_.empty()) return;
+  const int64_t num_links = static_cast<int64_t>(links_.size());
+  link_toi_.resize(num_links);
+  auto link_groups = [&](int64_t k) { return groups_of(candidate_vertices(model_, c, links_[k]), group_of_vertex); };
+
+  // 2. The links along the whole motion, each lowering all its groups. An impact later than the
+  // largest cap among them would lower none, so that is as far as each is checked.
+  parallel_for(num_links, [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      double tmax = 0.0;
+      for (int32_t g : link_groups(k))
+        if (g >= 0) tmax = std::max(tmax, alpha[g]);
+      double toi = 1.0;
+      link_toi_[k] = pair_ccd(links_[k], x, y, tmax, toi) ? toi : 1.0;
+    }
+  }, kPairGrain);
+  for (int64_t k = 0; k < num_links; ++k)
+    for (int32_t g : link_groups(k))
+      if (g >= 0) alpha[g] = std::min(alpha[g], link_toi_[k]);
+
+  // 3. The groups now move by different fractions of their motions. Each round checks, along the
+  // motion the current fractions give (vertex v of group g ends at x + alpha[g] (x1 - x)), the
+  // links whose groups take different fractions; a link whose groups all take one fraction moves
+  // along a part of its swept path that step 2 cleared (every one of its groups' caps is at most
+  // its time of impact). Each link that comes closer than the CCD's gap lowers its groups to the
+  // smallest fraction among them. Fractions only fall, to values already present, so the rounds
+  // end; at worst every group of a linked set takes the set's smallest cap.
+  settled_.assign(alpha, alpha + num_groups);
+  link_hits_.resize(num_links);
+  const int64_t n = model_.num_dofs();
+  scaled_end_.resize(n);
+  for (;;) {
+    parallel_for(n, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) {
+        const int32_t g = group_of_vertex[i / 3];
+        scaled_end_[i] = g < 0 ? x[i] : x[i] + alpha[g] * (y[i] - x[i]);
+      }
+    }, 8192);
+    parallel_for(num_links, [&](int64_t b, int64_t e) {
+      for (int64_t k = b; k < e; ++k) {
+        link_hits_[k] = 0;
+        const std::array<int32_t, 4> groups = link_groups(k);
+        bool same = true;
+        for (int32_t g : groups) same = same && (g < 0 || alpha[g] == alpha[groups[0]]);
+        double toi = 1.0;
+        if (!same) link_hits_[k] = pair_ccd(links_[k], x, scaled_end_.data(), 1.0, toi);
+      }
+    }, kPairGrain);
+    bool lowered = false;
+    for (int64_t k = 0; k < num_links; ++k) {
+      if (!link_hits_[k]) continue;
+      const std::array<int32_t, 4> groups = link_groups(k);
+      double smallest = 1.0;
+      for (int32_t g : groups)
+        if (g >= 0) smallest = std::min(smallest, alpha[g]);
+      for (int32_t g : groups)
+        if (g >= 0 && smallest < settled_[g]) settled_[g] = smallest, lowered = true;
+    }
+    if (!lowered) return;
+    std::copy(settled_.begin(), settled_.end(), alpha);
+  }
 }
 
 }  // namespace nexdyn

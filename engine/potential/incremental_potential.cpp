@@ -227,6 +227,11 @@ void IncrementalPotential::group_max_steps(const double* x, const int32_t* group
   for (const auto& term : terms_) term->group_max_steps(x, group_of_vertex, alpha);
 }
 
+void IncrementalPotential::linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
+                                               double* alpha) {
+  for (const auto& term : terms_) term->linked_max_steps(x, group_of_vertex, num_groups, alpha);
+}
+
 std::vector<const std::vector<int32_t>*> IncrementalPotential::coupling_stencils() {
   std::vector<const std::vector<int32_t>*> lists;
   mapped_coupling_.resize(terms_.size());

@@ -105,15 +105,17 @@ class IncrementalPotential {
   void gradient(const double* x, double* grad);
   // Largest fraction of the step p from x that every term allows (1 without contact).
   double max_step(const double* x, const double* p);
-  // max_step for independent groups of vertices (barrier_potential.hpp): sweep(x, p) finds the
-  // candidates of x -> x + p, the caller joins its groups over sweep_candidates(), then
-  // group_max_steps lowers alpha[g] to each group's collision-free fraction. With `pad`, the
+  // max_step for groups of vertices (barrier_potential.hpp): sweep(x, p) finds the candidates of
+  // x -> x + p, then group_max_steps lowers alpha[g] to each group's collision-free fraction
+  // (the caller joins its groups over sweep_candidates() first), or linked_max_steps does so for
+  // groups that pairs may link, each taking its own fraction where the links allow. With `pad`, the
   // pairs cover paths within pad[v] of the segment too, and move_sweep_end(x, p) has the next
   // group_max_steps check such a path x -> x + p over them, without searching again.
   void sweep(const double* x, const double* p, const uint8_t* moving = nullptr, const double* pad = nullptr);
   void move_sweep_end(const double* x, const double* p);
   const ContactCandidates* sweep_candidates() const;
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
+  void linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups, double* alpha);
   // The stencil lists (num x 4 vertex ids, -1 = none) that couple vertices in the Hessian beyond
   // the elastic pattern: the barrier's active set and the lagged friction contacts.
   // With affine bodies these are over nodes (engine/coordinate_map.hpp), valid until the next call.

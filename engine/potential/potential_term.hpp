@@ -11,7 +11,7 @@
 //   begin_solve(x)                once per Newton solve, at its start point
 //   per iteration: prepare(x)     what the derivatives need at x (the contact active set)
 //                  add_derivatives / add_diagonal
-//                  sweep, group_max_steps   (terms that bound the step: contact CCD)
+//                  sweep, group_max_steps, linked_max_steps (terms that bound the step: contact CCD)
 //                  energy / add_group_energy at trial points
 //                  end_iteration(x')        at the accepted point (adaptive stiffness)
 //
@@ -94,9 +94,11 @@ class PotentialTerm {
   // ---- terms that bound the step (contact): see BarrierPotential::sweep
   virtual void sweep(const double* /*x*/, const double* /*p*/, const uint8_t* /*moving*/, const double* /*pad*/) {}
   virtual void move_sweep_end(const double* /*x*/, const double* /*p*/) {}
-  // Pairs whose moving vertices must share a group for group_max_steps (null: none).
+  // The pairs of the last sweep (null: none).
   virtual const ContactCandidates* swept_pairs() const { return nullptr; }
   virtual void group_max_steps(const double* /*x*/, const int32_t* /*group_of_vertex*/, double* /*alpha*/) {}
+  virtual void linked_max_steps(const double* /*x*/, const int32_t* /*group_of_vertex*/, int32_t /*num_groups*/,
+                                   double* /*alpha*/) {}
   // Largest fraction of the step p from x that the term allows (1: any).
   virtual double max_step(const double* /*x*/, const double* /*p*/) { return 1.0; }
 

@@ -408,21 +408,38 @@ int32_t NewtonSolver::build_groups(const double* x) {
 }
 
 bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& result) {
-  // Each group's largest collision-free fraction of its own motion, then its slope.
+  // Each moving island's largest collision-free fraction of its own motion, capped by its own
+  // pairs and by those linking it to other islands of its group, which are then checked along
+  // the motion the islands' caps give together (BarrierPotential::linked_max_steps). One cap per
+  // group instead would hold a body to the fraction that a collision elsewhere in its group
+  // allows, iteration after iteration. The direction is scaled island by island; the group's
+  // line search then backtracks along it. A group's cap (for the history) is its smallest island's.
+  const int32_t num_islands = islands_.num_islands();
+  island_of_moving_vertex_.resize(model_.num_vertices);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t i = islands_.island_of(v);
+    island_of_moving_vertex_[v] = i >= 0 && island_moves_[i] ? i : -1;
+  }
+  potential_.map().follow_groups(island_of_moving_vertex_.data());
+  island_alpha_.assign(num_islands, 1.0);
+  potential_.linked_max_steps(x, island_of_moving_vertex_.data(), num_islands, island_alpha_.data());
   group_alpha_.assign(num_groups, 1.0);
-  potential_.group_max_steps(x, group_of_vertex_.data(), group_alpha_.data());
-  for (int32_t k = 0; k < num_groups; ++k)
-    if (!(group_alpha_[k] > 0.0)) {
+  for (int32_t i = 0; i < num_islands; ++i) {
+    if (!island_moves_[i]) continue;
+    if (!(island_alpha_[i] > 0.0)) {
       result.status = StepStatus::line_search_failed;
       result.message = "continuous collision detection allows no motion along the Newton direction";
       return false;
     }
+    double& cap = group_alpha_[group_of_island_[i]];
+    cap = std::min(cap, island_alpha_[i]);
+  }
   group_slope_.assign(num_groups, 0.0);
   const int64_t n = model_.num_dofs();
   for (int64_t i = 0; i < n; ++i) {
     const int32_t g = group_of_vertex_[i / 3];
     if (g < 0) continue;
-    direction_[i] *= group_alpha_[g];
+    direction_[i] *= island_alpha_[island_of_moving_vertex_[i / 3]];
     group_slope_[g] += grad_[i] * direction_[i];
   }
   return true;

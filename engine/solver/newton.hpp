@@ -13,15 +13,17 @@
 // the converged parts frozen, and a body falling alone converges in one or two iterations even
 // while a pile next to it needs thirty.
 //
-// The step length is capped per group of islands: the CCD sweep's candidate pairs join islands
-// that might meet along the step, and each group takes the largest collision-free fraction of its
-// own motion (one global cap would let the closest impact of the scene slow every body), then
-// backtracks on its own until its own part of the energy decreases enough (Armijo). Every trial
-// point is intersection-free and its barrier is evaluated over the pairs close to the whole
-// segment. A failure is returned as a StepStatus with a sentence saying why, never thrown (a
-// matrix that is not positive definite, a CHOLMOD failure, a system too large for the solver's
-// tables: island_system.hpp, cholmod_solver.hpp); the solver never accepts a step it could not
-// finish.
+// The step length is capped per island: each takes the largest collision-free fraction of its
+// own motion (one global cap would let the closest impact of the scene slow every body), and
+// where a pair of the CCD sweep links two islands that take different fractions, the pair is
+// checked again along the motion the two give together (a collision there gives both the
+// smaller one). The sweep's pairs also join islands into groups, which might meet along the
+// step: each group backtracks on its own along its islands' capped directions until its own
+// part of the energy decreases enough (Armijo). Every trial point is intersection-free and its
+// barrier is evaluated over the pairs close to the whole segment. A failure is returned as a
+// StepStatus with a sentence saying why, never thrown (a matrix that is not positive definite, a
+// CHOLMOD failure, a system too large for the solver's tables: island_system.hpp,
+// cholmod_solver.hpp); the solver never accepts a step it could not finish.
 #pragma once
 
 #include "engine/potential/incremental_potential.hpp"
@@ -69,9 +71,10 @@ struct NewtonResult {
 
 // One Newton iteration as the solver saw it (NewtonSolver::set_history): what was solved, and per
 // group of moving islands (numbered as the line search numbers them) the CCD cap on the step
-// length, the slope g.p along the capped direction, the group's energy at the start and at the
-// accepted point, and the accepted fraction of the capped step. The last iteration of a converged
-// solve has no groups: every island was below the tolerance.
+// length (the smallest of its islands' caps), the slope g.p along the capped direction, the
+// group's energy at the start and at the accepted point, and the accepted fraction of the capped
+// step. The last iteration of a converged solve has no groups: every island was below the
+// tolerance.
 struct NewtonIterate {
   int32_t solved_islands = 0;  // factorised and solved this iteration
   int32_t moving_islands = 0;  // of those, not converged: they moved
@@ -138,7 +141,8 @@ class NewtonSolver {
   // Groups of moving islands linked by pairs of the CCD sweep of x -> x + p (padded by the affine
   // bodies' turns); returns their count.
   int32_t build_groups(const double* x);
-  // Scales each group's direction to its collision-free fraction; the groups' slopes.
+  // Scales each moving island's direction to its collision-free fraction (settled over the pairs
+  // that link islands of a group); the groups' slopes.
   bool cap_steps(const double* x, int32_t num_groups, NewtonResult& result);
   // Backtracking per group from x; the accepted point is left in trial_. With affine bodies the
   // trial points first turn them (CoordinateMap::turn), then, if that fails, go straight.
@@ -188,6 +192,8 @@ class NewtonSolver {
   std::vector<uint8_t> vertex_moves_;         // (num_vertices) in such an island
   std::vector<int32_t> group_of_island_;      // (islands) -1 = does not move
   std::vector<int32_t> group_of_vertex_;      // (num_vertices) -1 = does not move
+  std::vector<int32_t> island_of_moving_vertex_;  // (num_vertices) its island if that moves, else -1
+  std::vector<double> island_alpha_;          // (islands) CCD cap of each moving island
   // (groups) step length, slope g.p, energies at x and at the trial point, accepted
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;

@@ -44,6 +44,10 @@ class BarrierTerm final : public PotentialTerm {
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) override {
     contact_.group_max_steps(x, group_of_vertex, alpha);
   }
+  void linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
+                           double* alpha) override {
+    contact_.linked_max_steps(x, group_of_vertex, num_groups, alpha);
+  }
   double max_step(const double* x, const double* p) override { return contact_.max_step(x, p); }
   const std::vector<int32_t>* end_iteration(const double* x) override;
 
