@@ -209,6 +209,9 @@ class BarrierPotential {
   std::vector<double> link_toi_;
   std::vector<uint8_t> link_hits_;
   std::vector<double> settled_, scaled_end_;
+  // group_max_steps' pass over the pairs of x -> x1_, lowering alpha; with set_links_aside, the
+  // pairs linking groups are listed in links_ instead (linked_max_steps).
+  void earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha, bool set_links_aside);
   // The conservative CCD of candidate i (index into the concatenated lists) from x to y.
   bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi) const;
 };

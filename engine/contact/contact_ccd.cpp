@@ -139,48 +139,19 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
                          toi);
 }
 
-void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
-  ProfileScope scope(profile_, StepPhase::ccd);
+void BarrierPotential::earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha,
+                                        bool set_links_aside) {
   const double* y = x1_.data();
   const ContactCandidates& c = candidates_;
   // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
   // of one group passes its running minimum as tmax to cut work short. Each run leaves one
   // (group, time) result, and the results are combined in chunk order: the same on any thread
-  // count. A pair's group is that of its first moving vertex (all its moving vertices share one,
-  // by the caller's promise).
-  const int64_t count = c.size();
-  const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
-  run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
-  parallel_for(chunks, [&](int64_t cb, int64_t ce) {
-    for (int64_t k = cb; k < ce; ++k) {
-      stop_point();
-      std::vector<std::pair<int32_t, double>>& runs = run_minima_[k];
-      runs.clear();
-      for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
-        const int32_t g = groups_of(candidate_vertices(model_, c, i), group_of_vertex)[0];
-        if (g < 0) continue;
-        if (runs.empty() || runs.back().first != g) runs.emplace_back(g, 1.0);
-        double toi = 1.0;
-        if (pair_ccd(i, x, y, runs.back().second, toi)) runs.back().second = std::min(runs.back().second, toi);
-      }
-    }
-  }, 1);
-  for (int64_t k = 0; k < chunks; ++k)
-    for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
-}
-
-void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
-                                        double* alpha) {
-  ProfileScope scope(profile_, StepPhase::ccd);
-  const double* y = x1_.data();
-  const ContactCandidates& c = candidates_;
+  // count. A pair's group is that of its first moving vertex; with set_links_aside, a pair whose
+  // moving vertices lie in several groups goes to links_ instead (in pair order).
   const int64_t count = c.size();
   const int64_t chunks = (count + kPairGrain - 1) / kPairGrain;
   run_minima_.resize(std::max<size_t>(run_minima_.size(), chunks));
   link_chunks_.resize(std::max<size_t>(link_chunks_.size(), chunks));
-
-  // 1. Each group's own pairs (their moving vertices all in it), as in group_max_steps; the pairs
-  // that link groups are set aside, per chunk, in pair order.
   parallel_for(chunks, [&](int64_t cb, int64_t ce) {
     for (int64_t k = cb; k < ce; ++k) {
       stop_point();
@@ -190,7 +161,7 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
       for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
         const std::array<int32_t, 4> groups = groups_of(candidate_vertices(model_, c, i), group_of_vertex);
         if (groups[0] < 0) continue;
-        if (groups[1] >= 0) {
+        if (set_links_aside && groups[1] >= 0) {
           link_chunks_[k].push_back(i);
           continue;
         }
@@ -205,6 +176,21 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
     for (const auto& [g, t] : run_minima_[k]) alpha[g] = std::min(alpha[g], t);
     links_.insert(links_.end(), link_chunks_[k].begin(), link_chunks_[k].end());
   }
+}
+
+void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
+  earliest_impacts(x, group_of_vertex, alpha, false);  // (every pair in one group: the caller's promise)
+}
+
+void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of_vertex, int32_t num_groups,
+                                        double* alpha) {
+  ProfileScope scope(profile_, StepPhase::ccd);
+  const double* y = x1_.data();
+  const ContactCandidates& c = candidates_;
+  // 1. Each group's own pairs (their moving vertices all in it); the pairs that link groups are
+  // set aside.
+  earliest_impacts(x, group_of_vertex, alpha, true);
   if (links_.empty()) return;
   const int64_t num_links = static_cast<int64_t>(links_.size());
   link_toi_.resize(num_links);
