@@ -191,6 +191,7 @@ void BarrierPotential::search_all(const double* x0, const double* x1) {
   const int64_t n = model_.num_dofs();
   find_contact_candidates(model_, x0, x1, 0.5 * dhat_, candidates_);
   active_.forget_pairs(candidates_);
+  skin_valid_ = false;
   static_search_ = x1 == nullptr;
   if (static_search_) static_x_.assign(x0, x0 + n);
   dropped_ = false;
@@ -213,6 +214,7 @@ void BarrierPotential::set_asleep(const std::vector<int32_t>& vertices) {
   solved_.swap(solved);
   // Lists without the pairs of the old sleepers lack those of the ones woken now: search again.
   if (dropped_) static_search_ = covers_ = false;
+  skin_valid_ = false;
 }
 
 void BarrierPotential::drop_unsolved_pairs(const double* x) {
@@ -234,6 +236,7 @@ void BarrierPotential::drop_unsolved_pairs(const double* x) {
     pairs.resize(kept);
   });
   active_.forget_pairs(candidates_);
+  skin_valid_ = false;
   dropped_energy_ = reduce_pairs(model_, dropped, x, dhat2_, 0.0, SumEnergy{});
   dropped_ = true;
 }

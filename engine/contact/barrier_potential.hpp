@@ -145,7 +145,10 @@ class BarrierPotential {
   // pairs with a moving vertex and keeps the other pairs of the last search, valid because their
   // vertices have not moved since. That makes it cost what the moving bodies cost. With `pad`
   // too (num_vertices, as find_contact_candidates'), the pairs also cover every path within
-  // pad[v] of the segment.
+  // pad[v] of the segment. Such a search widens the affine bodies' moving vertices by a skin
+  // (kSweepSkin dhat): a later masked sweep whose moving vertices all moved in it, and whose
+  // paths (with their pads) stay within the skin of those segments, needs no search at all
+  // (a Newton iteration of a few converging bodies; see covered_by_last_sweep).
   void sweep(const double* x, const double* p, const uint8_t* moving = nullptr, const double* pad = nullptr);
   void group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha);
   // group_max_steps() for groups that pairs may link (the islands of a Newton step): each group
@@ -209,6 +212,18 @@ class BarrierPotential {
   std::vector<double> link_toi_;
   std::vector<uint8_t> link_hits_;
   std::vector<double> settled_, scaled_end_;
+  // The last masked search's capsules, for sweeps that need none (sweep()): the vertices that
+  // moved in it, and each one's segment and radius (its pad plus the skin; -1: a tet body's or
+  // held vertex, never covered; +inf: in no pair). Valid while skin_valid_: any other search clears it.
+  bool skin_valid_ = false;
+  std::vector<uint8_t> skin_moving_;                // (num_vertices)
+  std::vector<double> skin_from_, skin_to_;         // (3n)
+  std::vector<double> skin_radius_;                 // (num_vertices) [m]
+  std::vector<double> skinned_pad_;                 // (num_vertices) workspace: pad + skin
+  // Whether every moving vertex of the motion x -> x + p (within pad[v] of it) moved in the last
+  // masked search and stays inside its capsule: the list then covers the motion already. (An
+  // affine body's nodes are points of no pair: their radius is +inf and they never count.)
+  bool covered_by_last_sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) const;
   // group_max_steps' pass over the pairs of x -> x1_, lowering alpha; with set_links_aside, the
   // pairs linking groups are listed in links_ instead (linked_max_steps).
   void earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha, bool set_links_aside);

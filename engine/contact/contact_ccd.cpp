@@ -10,6 +10,9 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
+
+#include <Eigen/Core>
 
 namespace nexdyn {
 
@@ -24,6 +27,23 @@ namespace {
 // A CCD step stops at a distance of at most this fraction of dhat (and of the starting
 // distance): far enough from 0 that the barrier stays finite, close enough not to stall.
 constexpr double kCcdGapFraction = 0.1;
+
+// The skin of a masked sweep, in dhat: how far an affine body's vertex may later stray from its
+// swept segment and still be covered by the sweep's pairs (BarrierPotential::sweep).
+constexpr double kSweepSkin = 0.5;
+
+// skin_radius_ of an affine body's nodes (p and the columns of A): points of no pair, so their
+// motion never needs a search.
+constexpr double kNoPoint = std::numeric_limits<double>::infinity();
+
+// Squared distance from point q to the segment a -> b.
+double squared_distance_to_segment(const double* q, const double* a, const double* b) {
+  const Eigen::Vector3d d = Eigen::Vector3d::Map(b) - Eigen::Vector3d::Map(a);
+  const Eigen::Vector3d r = Eigen::Vector3d::Map(q) - Eigen::Vector3d::Map(a);
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0.0 ? std::clamp(r.dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (r - t * d).squaredNorm();
+}
 
 }  // namespace
 
@@ -40,6 +60,27 @@ void BarrierPotential::move_sweep_end(const double* x, const double* p) {
   }, 8192);
 }
 
+bool BarrierPotential::covered_by_last_sweep(const double* x, const double* p, const uint8_t* moving,
+                                             const double* pad) const {
+  if (!skin_valid_) return false;
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (!moving[v] || skin_radius_[v] == kNoPoint) continue;
+    if (!skin_moving_[v] || skin_radius_[v] < 0.0) return false;
+    const double radius = skin_radius_[v] - (pad ? pad[v] : 0.0);
+    if (radius < 0.0) return false;
+    // The capsule is convex: both ends of the new segment inside it (shrunk by the new pad) put
+    // the padded segment inside it.
+    const double* a = &skin_from_[3 * int64_t{v}];
+    const double* b = &skin_to_[3 * int64_t{v}];
+    const double* q0 = x + 3 * int64_t{v};
+    const double q1[3] = {q0[0] + p[3 * int64_t{v}], q0[1] + p[3 * int64_t{v} + 1], q0[2] + p[3 * int64_t{v} + 2]};
+    if (squared_distance_to_segment(q0, a, b) > radius * radius ||
+        squared_distance_to_segment(q1, a, b) > radius * radius)
+      return false;
+  }
+  return true;
+}
+
 void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) {
   ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
   const int64_t n = model_.num_dofs();
@@ -49,10 +90,32 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   static_search_ = false;
   // The kept pairs cover the still vertices where they are, the fresh ones the moving ones at x.
   if (covers_) cover_x_.assign(x, x + n);
+  // A motion inside the last masked search's capsules: its pairs are all in the list already. A
+  // pair that comes within dhat along it has its vertices inside their capsules all the while,
+  // so its primitives' boxes, widened by the capsules' radii, overlapped in that search (and a
+  // vertex-plane pair's distance there was at most its least inside the capsule).
+  if (covered_by_last_sweep(x, p, moving, pad)) return;
+  // The affine bodies' moving vertices are widened by the skin (a tet body's are not: its own
+  // pairs are searched in its co-moving frame, whose capsules this does not track).
+  const int32_t nv = model_.num_vertices;
+  const double skin = kSweepSkin * dhat_;
+  skinned_pad_.resize(nv);
+  skin_moving_.assign(moving, moving + nv);
+  skin_from_.assign(x, x + n);
+  skin_to_.assign(x1_.begin(), x1_.end());
+  skin_radius_.resize(nv);
+  for (int32_t v = 0; v < nv; ++v) {
+    const double own = pad ? pad[v] : 0.0;
+    const bool skinned = moving[v] && model_.follows_body(v) && model_.dirichlet[v] < 0;
+    skinned_pad_[v] = skinned ? own + skin : own;
+    const bool node = !model_.follows.empty() && (model_.follows[v] == Model::kCentreNode || model_.axis_node(v));
+    skin_radius_[v] = node ? kNoPoint : skinned ? own + skin : -1.0;
+  }
+  skin_valid_ = true;
   // Pairs of vertices that stay put keep their candidates: none of them moved since the last
   // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.
-  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving, pad);
+  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving, skinned_pad_.data());
   auto still = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
       if (v >= 0 && moving[v]) return false;

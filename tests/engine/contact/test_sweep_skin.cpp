@@ -1,0 +1,135 @@
+// The skin of the solver's masked sweeps (BarrierPotential::sweep): a sweep whose moving vertices
+// stay within the skin of the last search's segments keeps the list as it is, and that list must
+// still hold every pair the motion brings within dhat (the brute-force search of the same motion),
+// so that the CCD caps it as a fresh search would. Two affine cubes side by side along x; the
+// left one moves towards the right one.
+#include "engine/contact/barrier_potential.hpp"
+#include "engine/contact/candidates.hpp"
+#include "tests/engine/test_support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+using namespace nexdyn;
+
+namespace {
+
+constexpr double kDhat = 0.002;
+constexpr double kSize = 0.1;  // cube edge
+
+// Two affine cubes of 2 x 2 x 2 cells, the second `gap` m beyond the first along x.
+Scene two_cubes(double gap) {
+  auto body = [](double centre) {
+    return R"({ "box": { "size": [0.1, 0.1, 0.1], "cells": [2, 2, 2] }, "material": "a", "translate": [)" +
+           std::to_string(centre) + ", 0, 0] }";
+  };
+  return test::scene_from_json(R"({ "time": { "dt": 0.01 },
+    "materials": { "a": { "model": "affine", "density": 1000 } },
+    "bodies": [)" + body(0.0) + "," + body(kSize + gap) + "] }", "sweep_skin");
+}
+
+// The first cube's points (its followers) move by dx along x; its nodes and the second cube stay.
+struct Motion {
+  std::vector<double> p;
+  std::vector<uint8_t> moving;
+};
+Motion first_cube_by(const Model& model, double dx) {
+  Motion m;
+  m.p.assign(model.num_dofs(), 0.0);
+  m.moving.assign(model.num_vertices, 0);
+  for (int32_t v = 0; v < model.num_vertices; ++v) {
+    if (model.vertex_body[v] != 0) continue;
+    m.moving[v] = 1;
+    if (model.follows_body(v)) m.p[3 * v] = dx;
+  }
+  return m;
+}
+
+// Whether every pair of `needed` is in `list` (both sorted).
+bool holds_all(const ContactCandidates& list, const ContactCandidates& needed) {
+  return std::includes(list.vertex_triangle.begin(), list.vertex_triangle.end(), needed.vertex_triangle.begin(),
+                       needed.vertex_triangle.end()) &&
+         std::includes(list.edge_edge.begin(), list.edge_edge.end(), needed.edge_edge.begin(),
+                       needed.edge_edge.end()) &&
+         std::includes(list.vertex_plane.begin(), list.vertex_plane.end(), needed.vertex_plane.begin(),
+                       needed.vertex_plane.end());
+}
+
+bool same(const ContactCandidates& a, const ContactCandidates& b) {
+  return a.vertex_triangle == b.vertex_triangle && a.edge_edge == b.edge_edge && a.vertex_plane == b.vertex_plane;
+}
+
+// The cap of `motion` from x over a fresh search of it alone (no skin, no history).
+double fresh_cap(const Model& model, const std::vector<double>& x, const Motion& motion) {
+  BarrierPotential contact(model, kDhat);
+  contact.sweep(x.data(), motion.p.data());
+  std::vector<int32_t> group(model.num_vertices, -1);
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (motion.moving[v]) group[v] = 0;
+  double alpha = 1.0;
+  contact.group_max_steps(x.data(), group.data(), &alpha);
+  return alpha;
+}
+
+}  // namespace
+
+TEST_CASE("sweep skin: a motion inside the last sweep's skin keeps its list, which holds every pair it brings near") {
+  // Faces 1.9 dhat apart. The first sweep moves the left cube 0.5 dhat closer (1.4 dhat at its
+  // end: no pair within dhat, but within dhat plus the 0.5 dhat skin). The cube stops there;
+  // the next sweep moves it 0.45 dhat more, to 0.95 dhat: pairs come within dhat. That motion
+  // stays inside the skin of the first segment, so the list is kept as it was, and it must hold
+  // those pairs (the first search found them only through the skin).
+  const Scene scene = two_cubes(1.9 * kDhat);
+  const Model& model = scene.model;
+  std::vector<double> x = model.rest_positions;
+  BarrierPotential contact(model, kDhat);
+  contact.find_candidates(x.data(), nullptr);
+  const Motion approach = first_cube_by(model, 0.5 * kDhat);
+  contact.sweep(x.data(), approach.p.data(), approach.moving.data());
+  const ContactCandidates after_first = contact.candidates();
+  for (int64_t i = 0; i < model.num_dofs(); ++i) x[i] += approach.p[i];
+
+  const Motion closer = first_cube_by(model, 0.45 * kDhat);
+  std::vector<double> x1 = x;
+  for (int64_t i = 0; i < model.num_dofs(); ++i) x1[i] += closer.p[i];
+  ContactCandidates needed;  // every pair the motion brings within dhat
+  find_contact_candidates_brute_force(model, x.data(), x1.data(), 0.5 * kDhat, needed, closer.moving.data());
+  REQUIRE(!needed.vertex_triangle.empty());
+  contact.sweep(x.data(), closer.p.data(), closer.moving.data());
+  CHECK(same(contact.candidates(), after_first));  // no search: the list as the first sweep left it
+  CHECK(holds_all(contact.candidates(), needed));
+  // The CCD over the kept list caps the motion as over a fresh search of it.
+  std::vector<int32_t> group(model.num_vertices, -1);
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (closer.moving[v]) group[v] = 0;
+  double alpha = 1.0;
+  contact.group_max_steps(x.data(), group.data(), &alpha);
+  CHECK(alpha == fresh_cap(model, x, closer));
+}
+
+TEST_CASE("sweep skin: a motion beyond the skin is searched again") {
+  // The same start; the second motion (1.2 dhat, into contact) leaves the first segment's skin,
+  // so the list is searched again: it changes, and holds every pair of the new motion.
+  const Scene scene = two_cubes(1.9 * kDhat);
+  const Model& model = scene.model;
+  std::vector<double> x = model.rest_positions;
+  BarrierPotential contact(model, kDhat);
+  contact.find_candidates(x.data(), nullptr);
+  const Motion away = first_cube_by(model, -0.5 * kDhat);  // opening the gap: no pair near
+  contact.sweep(x.data(), away.p.data(), away.moving.data());
+  const ContactCandidates after_first = contact.candidates();
+  CHECK(after_first.vertex_triangle.empty());
+
+  const Motion into = first_cube_by(model, 1.2 * kDhat);
+  ContactCandidates needed;
+  std::vector<double> x1 = x;
+  for (int64_t i = 0; i < model.num_dofs(); ++i) x1[i] += into.p[i];
+  find_contact_candidates_brute_force(model, x.data(), x1.data(), 0.5 * kDhat, needed, into.moving.data());
+  REQUIRE(!needed.vertex_triangle.empty());
+  contact.sweep(x.data(), into.p.data(), into.moving.data());
+  CHECK(!same(contact.candidates(), after_first));
+  CHECK(holds_all(contact.candidates(), needed));
+}
