@@ -212,11 +212,11 @@ class BarrierPotential {
   std::vector<double> link_toi_;
   std::vector<uint8_t> link_hits_;
   std::vector<double> settled_, scaled_end_;
-  // The last masked search's capsules, for sweeps that need none (sweep()): the vertices that
-  // moved in it, and each one's segment and radius (its pad plus the skin; -1: a tet body's or
-  // held vertex, never covered; +inf: in no pair). Valid while skin_valid_: any other search clears it.
+  // The last masked search's capsules, for sweeps that need none (sweep()): each vertex's swept
+  // segment and radius (its pad plus the skin; -1: it did not move in that search, or is a tet
+  // body's or held vertex, never covered; +inf: in no pair). Valid while skin_valid_: any other
+  // search clears it.
   bool skin_valid_ = false;
-  std::vector<uint8_t> skin_moving_;                // (num_vertices)
   std::vector<double> skin_from_, skin_to_;         // (3n)
   std::vector<double> skin_radius_;                 // (num_vertices) [m]
   std::vector<double> skinned_pad_;                 // (num_vertices) workspace: pad + skin

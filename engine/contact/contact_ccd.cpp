@@ -7,12 +7,11 @@
 #include "engine/parallel.hpp"
 #include "engine/stop_request.hpp"
 #include "kernels/ccd/ccd.hpp"
+#include "kernels/distance/point_edge_distance.hpp"
 
 #include <algorithm>
 #include <array>
 #include <limits>
-
-#include <Eigen/Core>
 
 namespace nexdyn {
 
@@ -36,15 +35,6 @@ constexpr double kSweepSkin = 0.5;
 // motion never needs a search.
 constexpr double kNoPoint = std::numeric_limits<double>::infinity();
 
-// Squared distance from point q to the segment a -> b.
-double squared_distance_to_segment(const double* q, const double* a, const double* b) {
-  const Eigen::Vector3d d = Eigen::Vector3d::Map(b) - Eigen::Vector3d::Map(a);
-  const Eigen::Vector3d r = Eigen::Vector3d::Map(q) - Eigen::Vector3d::Map(a);
-  const double len2 = d.squaredNorm();
-  const double t = len2 > 0.0 ? std::clamp(r.dot(d) / len2, 0.0, 1.0) : 0.0;
-  return (r - t * d).squaredNorm();
-}
-
 }  // namespace
 
 double BarrierPotential::max_step(const double* x, const double* p) {
@@ -65,17 +55,13 @@ bool BarrierPotential::covered_by_last_sweep(const double* x, const double* p, c
   if (!skin_valid_) return false;
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
     if (!moving[v] || skin_radius_[v] == kNoPoint) continue;
-    if (!skin_moving_[v] || skin_radius_[v] < 0.0) return false;
     const double radius = skin_radius_[v] - (pad ? pad[v] : 0.0);
-    if (radius < 0.0) return false;
+    if (skin_radius_[v] < 0.0 || radius < 0.0) return false;  // (< 0: it did not move in that search)
     // The capsule is convex: both ends of the new segment inside it (shrunk by the new pad) put
     // the padded segment inside it.
-    const double* a = &skin_from_[3 * int64_t{v}];
-    const double* b = &skin_to_[3 * int64_t{v}];
-    const double* q0 = x + 3 * int64_t{v};
-    const double q1[3] = {q0[0] + p[3 * int64_t{v}], q0[1] + p[3 * int64_t{v} + 1], q0[2] + p[3 * int64_t{v} + 2]};
-    if (squared_distance_to_segment(q0, a, b) > radius * radius ||
-        squared_distance_to_segment(q1, a, b) > radius * radius)
+    const Eigen::Vector3d a = point(skin_from_.data(), v), b = point(skin_to_.data(), v);
+    const Eigen::Vector3d q0 = point(x, v), q1 = q0 + point(p, v);
+    if (point_edge_distance(q0, a, b) > radius * radius || point_edge_distance(q1, a, b) > radius * radius)
       return false;
   }
   return true;
@@ -100,7 +86,6 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   const int32_t nv = model_.num_vertices;
   const double skin = kSweepSkin * dhat_;
   skinned_pad_.resize(nv);
-  skin_moving_.assign(moving, moving + nv);
   skin_from_.assign(x, x + n);
   skin_to_.assign(x1_.begin(), x1_.end());
   skin_radius_.resize(nv);

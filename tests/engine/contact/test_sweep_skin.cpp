@@ -62,17 +62,44 @@ bool same(const ContactCandidates& a, const ContactCandidates& b) {
   return a.vertex_triangle == b.vertex_triangle && a.edge_edge == b.edge_edge && a.vertex_plane == b.vertex_plane;
 }
 
-// The cap of `motion` from x over a fresh search of it alone (no skin, no history).
-double fresh_cap(const Model& model, const std::vector<double>& x, const Motion& motion) {
-  BarrierPotential contact(model, kDhat);
-  contact.sweep(x.data(), motion.p.data());
-  std::vector<int32_t> group(model.num_vertices, -1);
-  for (int32_t v = 0; v < model.num_vertices; ++v)
+// x moved by `motion`.
+std::vector<double> moved(const std::vector<double>& x, const Motion& motion) {
+  std::vector<double> y = x;
+  for (size_t i = 0; i < y.size(); ++i) y[i] += motion.p[i];
+  return y;
+}
+
+// The CCD cap of `motion` from x over the pairs `contact` holds, its moving vertices one group.
+double cap_over(BarrierPotential& contact, const std::vector<double>& x, const Motion& motion) {
+  std::vector<int32_t> group(motion.moving.size(), -1);
+  for (size_t v = 0; v < group.size(); ++v)
     if (motion.moving[v]) group[v] = 0;
   double alpha = 1.0;
   contact.group_max_steps(x.data(), group.data(), &alpha);
   return alpha;
 }
+
+// Every pair `motion` brings within dhat from x (the brute-force search).
+ContactCandidates pairs_near(const Model& model, const std::vector<double>& x, const Motion& motion) {
+  const std::vector<double> x1 = moved(x, motion);
+  ContactCandidates pairs;
+  find_contact_candidates_brute_force(model, x.data(), x1.data(), 0.5 * kDhat, pairs, motion.moving.data());
+  return pairs;
+}
+
+// The two cubes 1.9 dhat apart, their pairs searched at rest; then a first sweep of `first`.
+struct AfterFirstSweep {
+  Scene scene = two_cubes(1.9 * kDhat);
+  std::vector<double> x = scene.model.rest_positions;
+  BarrierPotential contact{scene.model, kDhat};
+  ContactCandidates after_first;
+  explicit AfterFirstSweep(double first_dx) {
+    contact.find_candidates(x.data(), nullptr);
+    const Motion first = first_cube_by(scene.model, first_dx);
+    contact.sweep(x.data(), first.p.data(), first.moving.data());
+    after_first = contact.candidates();
+  }
+};
 
 }  // namespace
 
@@ -82,54 +109,31 @@ TEST_CASE("sweep skin: a motion inside the last sweep's skin keeps its list, whi
   // the next sweep moves it 0.45 dhat more, to 0.95 dhat: pairs come within dhat. That motion
   // stays inside the skin of the first segment, so the list is kept as it was, and it must hold
   // those pairs (the first search found them only through the skin).
-  const Scene scene = two_cubes(1.9 * kDhat);
-  const Model& model = scene.model;
-  std::vector<double> x = model.rest_positions;
-  BarrierPotential contact(model, kDhat);
-  contact.find_candidates(x.data(), nullptr);
-  const Motion approach = first_cube_by(model, 0.5 * kDhat);
-  contact.sweep(x.data(), approach.p.data(), approach.moving.data());
-  const ContactCandidates after_first = contact.candidates();
-  for (int64_t i = 0; i < model.num_dofs(); ++i) x[i] += approach.p[i];
-
+  AfterFirstSweep s(0.5 * kDhat);
+  const Model& model = s.scene.model;
+  const std::vector<double> x = moved(s.x, first_cube_by(model, 0.5 * kDhat));  // where it stopped
   const Motion closer = first_cube_by(model, 0.45 * kDhat);
-  std::vector<double> x1 = x;
-  for (int64_t i = 0; i < model.num_dofs(); ++i) x1[i] += closer.p[i];
-  ContactCandidates needed;  // every pair the motion brings within dhat
-  find_contact_candidates_brute_force(model, x.data(), x1.data(), 0.5 * kDhat, needed, closer.moving.data());
+  const ContactCandidates needed = pairs_near(model, x, closer);
   REQUIRE(!needed.vertex_triangle.empty());
-  contact.sweep(x.data(), closer.p.data(), closer.moving.data());
-  CHECK(same(contact.candidates(), after_first));  // no search: the list as the first sweep left it
-  CHECK(holds_all(contact.candidates(), needed));
-  // The CCD over the kept list caps the motion as over a fresh search of it.
-  std::vector<int32_t> group(model.num_vertices, -1);
-  for (int32_t v = 0; v < model.num_vertices; ++v)
-    if (closer.moving[v]) group[v] = 0;
-  double alpha = 1.0;
-  contact.group_max_steps(x.data(), group.data(), &alpha);
-  CHECK(alpha == fresh_cap(model, x, closer));
+  s.contact.sweep(x.data(), closer.p.data(), closer.moving.data());
+  CHECK(same(s.contact.candidates(), s.after_first));  // no search: the list as the first sweep left it
+  CHECK(holds_all(s.contact.candidates(), needed));
+  // The CCD over the kept list caps the motion as over a fresh search of it alone.
+  BarrierPotential fresh(model, kDhat);
+  fresh.sweep(x.data(), closer.p.data());
+  CHECK(cap_over(s.contact, x, closer) == cap_over(fresh, x, closer));
 }
 
 TEST_CASE("sweep skin: a motion beyond the skin is searched again") {
-  // The same start; the second motion (1.2 dhat, into contact) leaves the first segment's skin,
-  // so the list is searched again: it changes, and holds every pair of the new motion.
-  const Scene scene = two_cubes(1.9 * kDhat);
-  const Model& model = scene.model;
-  std::vector<double> x = model.rest_positions;
-  BarrierPotential contact(model, kDhat);
-  contact.find_candidates(x.data(), nullptr);
-  const Motion away = first_cube_by(model, -0.5 * kDhat);  // opening the gap: no pair near
-  contact.sweep(x.data(), away.p.data(), away.moving.data());
-  const ContactCandidates after_first = contact.candidates();
-  CHECK(after_first.vertex_triangle.empty());
-
-  const Motion into = first_cube_by(model, 1.2 * kDhat);
-  ContactCandidates needed;
-  std::vector<double> x1 = x;
-  for (int64_t i = 0; i < model.num_dofs(); ++i) x1[i] += into.p[i];
-  find_contact_candidates_brute_force(model, x.data(), x1.data(), 0.5 * kDhat, needed, into.moving.data());
+  // The same cubes; a first sweep that opens the gap (no pair near), then a motion of 1.2 dhat
+  // from rest into contact, beyond the first segment's skin: the list is searched again, so it
+  // changes and holds every pair of the new motion.
+  AfterFirstSweep s(-0.5 * kDhat);  // opening the gap: no pair near
+  CHECK(s.after_first.vertex_triangle.empty());
+  const Motion into = first_cube_by(s.scene.model, 1.2 * kDhat);
+  const ContactCandidates needed = pairs_near(s.scene.model, s.x, into);
   REQUIRE(!needed.vertex_triangle.empty());
-  contact.sweep(x.data(), into.p.data(), into.moving.data());
-  CHECK(!same(contact.candidates(), after_first));
-  CHECK(holds_all(contact.candidates(), needed));
+  s.contact.sweep(s.x.data(), into.p.data(), into.moving.data());
+  CHECK(!same(s.contact.candidates(), s.after_first));
+  CHECK(holds_all(s.contact.candidates(), needed));
 }
