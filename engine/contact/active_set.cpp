@@ -149,6 +149,17 @@ double ContactActiveSet::min_squared_distance(const ContactCandidates& candidate
   return min_d;
 }
 
+double ContactActiveSet::squared_distance_at(int64_t i, const PairVertices& s, const double* x) const {
+  if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
+  for (int32_t v : s) {
+    if (v < 0) continue;
+    const double* p = x + 3 * int64_t{v};
+    const double* q = &positions_[3 * int64_t{v}];
+    if (!(p[0] == q[0] && p[1] == q[1] && p[2] == q[2])) return -1.0;
+  }
+  return distance_[i];
+}
+
 // ---- stencils ---------------------------------------------------------------------------------
 
 void ContactActiveSet::build(const ContactCandidates& candidates, const double* x) {

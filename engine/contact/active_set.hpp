@@ -58,6 +58,9 @@ class ContactActiveSet {
   // Smallest squared distance over the candidates at x (refreshes; +inf without candidates):
   // exact when below dhat^2, else a lower bound that is at least dhat^2 (see the top).
   double min_squared_distance(const ContactCandidates& candidates, const double* x);
+  // Candidate i's squared distance as last refreshed, if that was at x (every vertex of s, its
+  // vertices, exactly where x has it): exact below dhat^2, else a lower bound. -1 otherwise.
+  double squared_distance_at(int64_t i, const PairVertices& s, const double* x) const;
 
   // ---- stencils
   // The active set at x: candidates closer than dhat, merged into stencils (see the top).

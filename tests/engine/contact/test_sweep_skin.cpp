@@ -2,7 +2,9 @@
 // stay within the skin of the last search's segments keeps the list as it is, and that list must
 // still hold every pair the motion brings within dhat (the brute-force search of the same motion),
 // so that the CCD caps it as a fresh search would. Two affine cubes side by side along x; the
-// left one moves towards the right one.
+// left one moves towards the right one. The CCD over such a list skips the pairs that the active
+// set's distances at the start show cannot close in (BarrierPotential::pair_ccd): its caps must be
+// those of the CCD run on every pair.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/contact/candidates.hpp"
 #include "tests/engine/test_support.hpp"
@@ -136,4 +138,40 @@ TEST_CASE("sweep skin: a motion beyond the skin is searched again") {
   s.contact.sweep(s.x.data(), into.p.data(), into.moving.data());
   CHECK(!same(s.contact.candidates(), s.after_first));
   CHECK(holds_all(s.contact.candidates(), needed));
+}
+
+TEST_CASE("sweep skin: the CCD answered from the active set's distances caps as the CCD of every pair") {
+  // Cubes 0.5 dhat apart: their facing pairs are within dhat (exact distances in the active set),
+  // the rest beyond (box-gap bounds). The left cube moves by -0.5 to 1.5 dhat along x, each point
+  // jittered by up to 0.3 dhat: motions that stay clear, graze and run into the right cube. The
+  // caps over the same list must be equal bit for bit whether the active set was built at x (the
+  // cached distances let far pairs skip the CCD) or elsewhere (every pair runs it).
+  const Scene scene = two_cubes(0.5 * kDhat);
+  const Model& model = scene.model;
+  const std::vector<double> x = model.rest_positions;
+  std::vector<double> elsewhere = x;
+  for (double& c : elsewhere) c += 1e-9;
+  BarrierPotential contact(model, kDhat);
+  uint64_t seed = 12345;
+  auto jitter = [&] {  // in [-1, 1)
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) * 0x1.0p-52 - 1.0;
+  };
+  int capped = 0, clear = 0;
+  for (int k = 0; k <= 40; ++k) {
+    Motion motion = first_cube_by(model, (-0.5 + 0.05 * k) * kDhat);
+    for (int32_t v = 0; v < model.num_vertices; ++v)
+      if (motion.moving[v] && model.follows_body(v))
+        for (int d = 0; d < 3; ++d) motion.p[3 * v + d] += 0.3 * kDhat * jitter();
+    contact.sweep(x.data(), motion.p.data());
+    contact.build_active_set(x.data());
+    REQUIRE(contact.num_active_pairs() > 0);
+    const double cached = cap_over(contact, x, motion);
+    contact.build_active_set(elsewhere.data());
+    const double every_pair = cap_over(contact, x, motion);
+    CHECK(cached == every_pair);
+    (every_pair < 1.0 ? capped : clear) += 1;
+  }
+  CHECK(capped >= 10);  // the motions run into the cube and graze it, as well as stay clear
+  CHECK(clear >= 5);
 }
