@@ -31,6 +31,8 @@ int64_t num_chunks(int64_t num_candidates) { return (num_candidates + kCandidate
 // edge-edge pair inside the mollifier's band.
 constexpr uint8_t kMollifiedCode = 32;
 
+double sq(double a) { return a * a; }
+
 int32_t lower(int32_t a, int32_t b) { return a < b ? a : b; }
 int32_t upper(int32_t a, int32_t b) { return a < b ? b : a; }
 
@@ -90,28 +92,45 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
   distance_.resize(num);
   code_.resize(num);
 
-  // Vertices whose position differs from the cached one (NaN always does), brought up to date.
+  // How far each vertex moved from its cached position (0: not at all; NaN when either is NaN),
+  // the cache brought up to date.
   const int64_t nv = model_.num_vertices;
-  vertex_changed_.resize(nv);
+  vertex_motion_.resize(nv);
   parallel_for(nv, [&](int64_t begin, int64_t end) {
     for (int64_t v = begin; v < end; ++v) {
       const double* p = x + 3 * v;
       double* q = &positions_[3 * v];
       const bool changed = !(p[0] == q[0] && p[1] == q[1] && p[2] == q[2]);
-      vertex_changed_[v] = changed;
+      vertex_motion_[v] = changed ? std::sqrt(sq(p[0] - q[0]) + sq(p[1] - q[1]) + sq(p[2] - q[2])) : 0.0;
       if (changed) std::copy(p, p + 3, q);
+      if (changed && vertex_motion_[v] == 0.0) vertex_motion_[v] = kInf;  // (a move too small to square: recompute)
     }
   }, 8192);
 
   parallel_for(num_chunks(num), [&](int64_t cb, int64_t ce) {
     for (int64_t i = cb * kCandidateChunk; i < std::min(num, ce * kCandidateChunk); ++i) {
       const PairVertices s = candidate_vertices(model_, c, i);
-      if (known_[i] && !vertex_changed_[s[0]] && (s[1] < 0 || !(vertex_changed_[s[1]] |
-          vertex_changed_[s[2]] | vertex_changed_[s[3]])))
-        continue;
+      const bool primitives = i < nvt + nee;  // (else a vertex-plane pair)
+      if (known_[i]) {
+        // The distance shrinks by at most the largest motion of each side since it was cached.
+        double reach = vertex_motion_[s[0]];
+        if (primitives) {
+          const int split = i < nvt ? 1 : 2;
+          double side[2] = {0.0, 0.0};
+          for (int k = 0; k < 4; ++k) side[k >= split] = std::max(side[k >= split], vertex_motion_[s[k]]);
+          reach = side[0] + side[1];
+        }
+        if (reach == 0.0) continue;  // (unmoved)
+        // An inactive pair whose motion leaves it beyond dhat stays inactive, its distance at least
+        // the old one less the motion: a lower bound, like the box gap below, with no kernel.
+        const double left = std::sqrt(distance_[i]) - reach;
+        if (primitives && code_[i] == 0 && left > 0.0 && left * left > pair_geometry::kFarMargin * dhat2_) {
+          distance_[i] = left * left;
+          continue;
+        }
+      }
       uint8_t code = 0;
       double d = kInf;
-      const bool primitives = i < nvt + nee;  // (else a vertex-plane pair)
       const double gap2 = primitives ? pair_geometry::box_gap_squared(x, nullptr, s, i < nvt ? 1 : 2) : 0.0;
       if (gap2 > pair_geometry::kFarMargin * dhat2_) {
         d = gap2;  // beyond dhat: inactive, its distance at least this

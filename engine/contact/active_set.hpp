@@ -8,7 +8,9 @@
 //     pairs keep their numbers from one iteration to the next; refresh() recomputes only the pairs
 //     that are new or have a vertex whose position changed (compared exactly). A pair whose
 //     primitives' bounding boxes are farther apart than dhat is inactive without its distance
-//     kernel: its cached distance is then that box gap, a lower bound (at least dhat^2);
+//     kernel: its cached distance is then that box gap, a lower bound (at least dhat^2); so is
+//     an inactive pair whose cached distance, less how far each side moved since, is still
+//     beyond dhat: its distance becomes that difference;
 //   * the stencils, one per closest feature rather than one per active pair: a vertex facing a
 //     vertex of another surface is the closest point of several vertex-triangle and edge-edge
 //     pairs, all with the same point-point distance, so their barriers are the same number. Pairs
@@ -96,7 +98,7 @@ class ContactActiveSet {
   // distance and code (0 inactive, else closest feature + 1, see active_set.cpp) at positions_,
   // valid where known_ is set.
   std::vector<double> positions_;         // (3 num_vertices) where the cached numbers were computed
-  std::vector<uint8_t> vertex_changed_;   // (num_vertices) workspace of refresh()
+  std::vector<double> vertex_motion_;     // (num_vertices) workspace of refresh() [m]
   std::vector<uint8_t> known_;            // (candidates)
   std::vector<double> distance_;          // (candidates) [m^2]
   std::vector<uint8_t> code_;             // (candidates)

@@ -1,15 +1,20 @@
 // Tests of engine/contact/active_set.hpp: the per-candidate cache carried through a rebuilt
 // candidate list (as BarrierPotential::sweep rebuilds it) gives the same stencils as a fresh
-// evaluation of every pair, with some vertices moved in between.
+// evaluation of every pair, with some vertices moved in between; pairs that move a little keep a
+// lower bound on their distance while it stays beyond dhat.
 // (The merging against every pair on its own, and the cache through BarrierPotential's masked
 // sweeps: test_contact_potential.cpp.)
 #include "engine/contact/active_set.hpp"
 #include "engine/contact/candidates.hpp"
+#include "engine/contact/pair_geometry.hpp"
+#include "kernels/distance/edge_edge_distance.hpp"
+#include "kernels/distance/point_triangle_distance.hpp"
 #include "tests/engine/test_support.hpp"
 
 #include <doctest/doctest.h>
 
 #include <numeric>
+#include <random>
 #include <vector>
 
 using namespace nexdyn;
@@ -96,4 +101,56 @@ TEST_CASE("active set: cache entries follow their pairs through a rebuilt candid
   misled.carry_pairs(old_list.size(), identity);
   misled.build(new_list, y.data());
   CHECK(misled.stencils() != fresh.stencils());
+}
+
+TEST_CASE("active set: pairs brought within dhat by many small moves are found, the rest keep lower bounds") {
+  // The upper box comes down onto the lower one in twelve moves of about 0.8 mm (each vertex
+  // jittered by up to 0.2 mm), from 10 mm apart to about 0.4 mm, dhat 4 mm: every move is small
+  // against the distances of most pairs, whose cached values are then carried as the old
+  // distance less the motion. After each move the stencils must equal a fresh evaluation's, and
+  // every cached distance must be exact within dhat and at most the true distance beyond.
+  const Scene scene = stacked_boxes();
+  const Model& model = scene.model;
+  const double dhat = 0.004;
+  std::vector<double> x = model.rest_positions;
+  ContactCandidates list;
+  find_contact_candidates(model, x.data(), nullptr, 0.5 * 0.03, list);  // pairs within 30 mm
+  ContactActiveSet cached(model, dhat * dhat);
+  cached.forget_pairs(list);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
+  const BodyRange& upper = model.bodies[1];
+  const int64_t nvt = static_cast<int64_t>(list.vertex_triangle.size());
+  const int64_t nee = static_cast<int64_t>(list.edge_edge.size());
+  auto p = [&](int32_t v) { return Eigen::Vector3d::Map(&x[3 * int64_t{v}]); };
+  for (int move = 0; move <= 12; ++move) {
+    CAPTURE(move);
+    if (move > 0)
+      for (int32_t v = upper.vertex_begin; v < upper.vertex_begin + upper.vertex_count; ++v) {
+        x[3 * v] += jitter(rng);
+        x[3 * v + 1] += -8e-4 + jitter(rng);
+        x[3 * v + 2] += jitter(rng);
+      }
+    cached.build(list, x.data());
+    ContactActiveSet fresh(model, dhat * dhat);
+    fresh.forget_pairs(list);
+    fresh.build(list, x.data());
+    check_same(cached, fresh);
+    int64_t beyond = 0;
+    for (int64_t i = 0; i < nvt + nee; ++i) {
+      const PairVertices s = pair_geometry::candidate_vertices(model, list, i);
+      const double exact = i < nvt ? point_triangle_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]))
+                                   : edge_edge_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]));
+      const double d = cached.squared_distance_at(i, s, x.data());
+      if (exact < dhat * dhat) {
+        CHECK(d == doctest::Approx(exact).epsilon(1e-12));
+      } else {
+        CHECK(d >= dhat * dhat);
+        CHECK(d <= exact * (1.0 + 1e-12));
+        ++beyond;
+      }
+    }
+    CHECK(beyond > 0);
+  }
+  CHECK(cached.num_active_pairs() > 20);  // the boxes end in contact
 }
