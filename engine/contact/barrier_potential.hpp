@@ -201,6 +201,8 @@ class BarrierPotential {
   ContactCandidates fresh_;          // pairs with a moving vertex, searched again
   std::vector<IndexPair> kept_;      // pairs of one list kept from the last search
   std::vector<int64_t> kept_index_;  // (kept_) their index in the old concatenated lists
+  std::vector<IndexPair> redone_;     // pairs of one list with a moving vertex, searched again
+  std::vector<int64_t> redone_index_; // (redone_) their index in the old concatenated lists
   std::vector<int64_t> origin_;      // (candidates) index in the old lists, -1 = fresh
   // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)
   std::vector<std::vector<std::pair<int32_t, double>>> run_minima_;

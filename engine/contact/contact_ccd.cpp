@@ -108,8 +108,9 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
     return true;
   };
   // Each list becomes its kept pairs merged with the fresh ones; origin_ records where each
-  // pair of the new lists was in the old ones (-1: fresh), so that the active set's cache
-  // entries of the kept pairs follow them.
+  // pair of the new lists was in the old ones (-1: new), so that the active set's cache entries
+  // follow their pairs: the kept ones, and the fresh ones that the old list held too (a moving
+  // vertex's pairs found again, most of them), whose distances at x the CCD then knows.
   const int64_t old_size = candidates_.size();
   origin_.clear();
   int64_t old_base = 0;
@@ -118,20 +119,23 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
     const std::vector<IndexPair>& fresh = fresh_.*member;
     kept_.clear();
     kept_index_.clear();
-    for (size_t i = 0; i < list.size(); ++i)
-      if (still(vertices_of(list[i]))) {
-        kept_.push_back(list[i]);
-        kept_index_.push_back(old_base + static_cast<int64_t>(i));
-      }
+    redone_.clear();
+    redone_index_.clear();
+    for (size_t i = 0; i < list.size(); ++i) {
+      const bool keep = still(vertices_of(list[i]));
+      (keep ? kept_ : redone_).push_back(list[i]);
+      (keep ? kept_index_ : redone_index_).push_back(old_base + static_cast<int64_t>(i));
+    }
     old_base += static_cast<int64_t>(list.size());
     list.resize(kept_.size() + fresh.size());
-    size_t a = 0, b = 0;
+    size_t a = 0, b = 0, r = 0;
     for (IndexPair& out : list) {
       if (b == fresh.size() || (a < kept_.size() && kept_[a] < fresh[b])) {
         origin_.push_back(kept_index_[a]);
         out = kept_[a++];
       } else {
-        origin_.push_back(-1);
+        while (r < redone_.size() && redone_[r] < fresh[b]) ++r;
+        origin_.push_back(r < redone_.size() && redone_[r] == fresh[b] ? redone_index_[r] : -1);
         out = fresh[b++];
       }
     }
