@@ -162,21 +162,20 @@ std::array<int32_t, 4> groups_of(const PairVertices& vertices, const int32_t* gr
   return groups;
 }
 
-// Whether a pair whose squared distance at x is at least d2 certainly stays apart on [0, tmax]
-// of the motion x -> y, so that the CCD need not run: its two sides (vertices s[0, split) and
+// Whether a pair whose distance at x is at least `bound` certainly stays apart on [0, tmax] of
+// the motion x -> y, so that the CCD need not run: its two sides (vertices s[0, split) and
 // s[split, 4)) move by at most their largest vertex motions, which bound how far the distance
 // can shrink. Asked to close no more than 80% of it, the distance stays above 0.2 d, above the
 // CCD's gap (at most 0.1 d), and the CCD would find nothing too: the margin covers the rounding
 // of both tests, so the answer is the CCD's own, bit for bit.
-bool stays_apart(const PairVertices& s, int split, const double* x, const double* y, double tmax, double d2) {
-  if (!(d2 > 0.0)) return false;  // (unknown, touching or NaN)
+bool stays_apart(const PairVertices& s, int split, const double* x, const double* y, double tmax, double bound) {
+  if (!(bound > 0.0)) return false;  // (unknown)
   double side[2] = {0.0, 0.0};
   for (int k = 0; k < 4; ++k) {
     const Eigen::Vector3d move = point(y, s[k]) - point(x, s[k]);
     side[k >= split] = std::max(side[k >= split], move.squaredNorm());
   }
-  const double reach = (std::sqrt(side[0]) + std::sqrt(side[1])) * tmax;
-  return reach * reach <= 0.64 * d2;
+  return (std::sqrt(side[0]) + std::sqrt(side[1])) * tmax <= 0.8 * bound;
 }
 
 }  // namespace
@@ -192,7 +191,7 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
   if (i < nvt) {
     const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
     if (box_gap_squared(x, y, s, 1) > far_gap2) return false;
-    if (stays_apart(s, 1, x, y, tmax, active_.squared_distance_at(i, s, x))) return false;
+    if (stays_apart(s, 1, x, y, tmax, active_.distance_bound_at(i, s, 1, x))) return false;
     return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                               point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
@@ -200,7 +199,7 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
   if (i < nvt + nee) {
     const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i - nvt]);
     if (box_gap_squared(x, y, s, 2) > far_gap2) return false;
-    if (stays_apart(s, 2, x, y, tmax, active_.squared_distance_at(i, s, x))) return false;
+    if (stays_apart(s, 2, x, y, tmax, active_.distance_bound_at(i, s, 2, x))) return false;
     return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                          point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);

@@ -131,6 +131,18 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
         x[3 * v + 1] += -8e-4 + jitter(rng);
         x[3 * v + 2] += jitter(rng);
       }
+    // Before the refresh: the bounds from the cached distances, less the motion since, hold at x.
+    int64_t bounded = 0;
+    for (int64_t i = 0; i < nvt + nee; ++i) {
+      const PairVertices s = pair_geometry::candidate_vertices(model, list, i);
+      const double bound = cached.distance_bound_at(i, s, i < nvt ? 1 : 2, x.data());
+      if (bound < 0.0) continue;
+      ++bounded;
+      const double exact = i < nvt ? point_triangle_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]))
+                                   : edge_edge_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]));
+      CHECK(bound * bound <= exact * (1.0 + 1e-12));
+    }
+    if (move > 0) CHECK(bounded > 0);
     cached.build(list, x.data());
     ContactActiveSet fresh(model, dhat * dhat);
     fresh.forget_pairs(list);

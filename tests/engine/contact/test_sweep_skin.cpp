@@ -144,13 +144,15 @@ TEST_CASE("sweep skin: the CCD answered from the active set's distances caps as 
   // Cubes 0.5 dhat apart: their facing pairs are within dhat (exact distances in the active set),
   // the rest beyond (box-gap bounds). The left cube moves by -0.5 to 1.5 dhat along x, each point
   // jittered by up to 0.3 dhat: motions that stay clear, graze and run into the right cube. The
-  // caps over the same list must be equal bit for bit whether the active set was built at x (the
-  // cached distances let far pairs skip the CCD) or elsewhere (every pair runs it).
+  // caps over the same list must be equal bit for bit whether the active set knows the pairs'
+  // distances (at x, or bounds from where they were cached: the pairs the motion cannot bring
+  // close skip the CCD) or not (a fresh potential: every pair runs it).
   const Scene scene = two_cubes(0.5 * kDhat);
   const Model& model = scene.model;
   const std::vector<double> x = model.rest_positions;
-  std::vector<double> elsewhere = x;
-  for (double& c : elsewhere) c += 1e-9;
+  std::vector<double> elsewhere = x;  // (the left cube one dhat to the left)
+  for (int32_t v = 0; v < model.num_vertices; ++v)
+    if (model.vertex_body[v] == 0) elsewhere[3 * v] -= kDhat;
   BarrierPotential contact(model, kDhat);
   uint64_t seed = 12345;
   auto jitter = [&] {  // in [-1, 1)
@@ -164,12 +166,15 @@ TEST_CASE("sweep skin: the CCD answered from the active set's distances caps as 
       if (motion.moving[v] && model.follows_body(v))
         for (int d = 0; d < 3; ++d) motion.p[3 * v + d] += 0.3 * kDhat * jitter();
     contact.sweep(x.data(), motion.p.data());
+    BarrierPotential fresh(model, kDhat);
+    fresh.sweep(x.data(), motion.p.data());
+    REQUIRE(same(contact.candidates(), fresh.candidates()));
+    const double every_pair = cap_over(fresh, x, motion);
     contact.build_active_set(x.data());
     REQUIRE(contact.num_active_pairs() > 0);
-    const double cached = cap_over(contact, x, motion);
+    CHECK(cap_over(contact, x, motion) == every_pair);
     contact.build_active_set(elsewhere.data());
-    const double every_pair = cap_over(contact, x, motion);
-    CHECK(cached == every_pair);
+    CHECK(cap_over(contact, x, motion) == every_pair);
     (every_pair < 1.0 ? capped : clear) += 1;
   }
   CHECK(capped >= 10);  // the motions run into the cube and graze it, as well as stay clear
