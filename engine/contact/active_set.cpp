@@ -181,13 +181,7 @@ double ContactActiveSet::squared_distance_at(int64_t i, const PairVertices& s, c
 
 double ContactActiveSet::distance_bound_at(int64_t i, const PairVertices& s, int split, const double* x) const {
   if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
-  double side[2] = {0.0, 0.0};
-  for (int k = 0; k < 4; ++k) {
-    const double* p = x + 3 * int64_t{s[k]};
-    const double* q = &positions_[3 * int64_t{s[k]}];
-    side[k >= split] = std::max(side[k >= split], sq(p[0] - q[0]) + sq(p[1] - q[1]) + sq(p[2] - q[2]));
-  }
-  const double bound = std::sqrt(distance_[i]) - std::sqrt(side[0]) - std::sqrt(side[1]);
+  const double bound = std::sqrt(distance_[i]) - pair_geometry::closing_reach(s, split, positions_.data(), x);
   return bound > 0.0 ? bound : -1.0;  // (NaN: -1)
 }
 

@@ -162,20 +162,13 @@ std::array<int32_t, 4> groups_of(const PairVertices& vertices, const int32_t* gr
   return groups;
 }
 
-// Whether a pair whose distance at x is at least `bound` certainly stays apart on [0, tmax] of
-// the motion x -> y, so that the CCD need not run: its two sides (vertices s[0, split) and
-// s[split, 4)) move by at most their largest vertex motions, which bound how far the distance
-// can shrink. Asked to close no more than 80% of it, the distance stays above 0.2 d, above the
+// Whether a pair whose distance at x is at least `bound` (> 0; else unknown) certainly stays
+// apart on [0, tmax] of the motion x -> y, so that the CCD need not run: its closing reach bounds
+// how far the distance can shrink. Asked to close no more than 80% of it, the distance stays above 0.2 d, above the
 // CCD's gap (at most 0.1 d), and the CCD would find nothing too: the margin covers the rounding
 // of both tests, so the answer is the CCD's own, bit for bit.
 bool stays_apart(const PairVertices& s, int split, const double* x, const double* y, double tmax, double bound) {
-  if (!(bound > 0.0)) return false;  // (unknown)
-  double side[2] = {0.0, 0.0};
-  for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector3d move = point(y, s[k]) - point(x, s[k]);
-    side[k >= split] = std::max(side[k >= split], move.squaredNorm());
-  }
-  return (std::sqrt(side[0]) + std::sqrt(side[1])) * tmax <= 0.8 * bound;
+  return bound > 0.0 && pair_geometry::closing_reach(s, split, x, y) * tmax <= 0.8 * bound;
 }
 
 }  // namespace

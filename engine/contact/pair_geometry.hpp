@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 namespace nexdyn::pair_geometry {
@@ -66,6 +67,19 @@ inline double box_gap_squared(const double* x0, const double* x1, const PairVert
 // Relative margin of the skips above: a pair is skipped only when its box gap passes the
 // distance of interest by this factor, far beyond the distance kernels' relative rounding.
 inline constexpr double kFarMargin = 1.0 + 1e-6;
+
+// How much closer the pair's primitives (vertices s[0, na) and s[na, 4)) can come as they move
+// from x0 to x1 on straight lines: the largest motion of a vertex of one plus that of the other.
+inline double closing_reach(const PairVertices& s, int na, const double* x0, const double* x1) {
+  double side[2] = {0.0, 0.0};
+  for (int k = 0; k < 4; ++k) {
+    const double* a = x0 + 3 * int64_t{s[k]};
+    const double* b = x1 + 3 * int64_t{s[k]};
+    const double dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
+    side[k >= na] = std::max(side[k >= na], dx * dx + dy * dy + dz * dz);
+  }
+  return std::sqrt(side[0]) + std::sqrt(side[1]);
+}
 
 // The PairVertices (candidates.hpp) of candidate i of the concatenated lists (vertex-triangle,
 // then edge-edge, then vertex-plane).
