@@ -103,7 +103,7 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
       const bool changed = !(p[0] == q[0] && p[1] == q[1] && p[2] == q[2]);
       vertex_motion_[v] = changed ? std::sqrt(sq(p[0] - q[0]) + sq(p[1] - q[1]) + sq(p[2] - q[2])) : 0.0;
       if (changed) std::copy(p, p + 3, q);
-      if (changed && vertex_motion_[v] == 0.0) vertex_motion_[v] = kInf;  // (a move too small to square: recompute)
+      if (changed && vertex_motion_[v] == 0.0) vertex_motion_[v] = kInf;  // (too small to square)
     }
   }, 8192);
 
@@ -112,14 +112,12 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
       const PairVertices s = candidate_vertices(model_, c, i);
       const bool primitives = i < nvt + nee;  // (else a vertex-plane pair)
       if (known_[i]) {
-        // The distance shrinks by at most the largest motion of each side since it was cached.
-        double reach = vertex_motion_[s[0]];
-        if (primitives) {
-          const int split = i < nvt ? 1 : 2;
-          double side[2] = {0.0, 0.0};
-          for (int k = 0; k < 4; ++k) side[k >= split] = std::max(side[k >= split], vertex_motion_[s[k]]);
-          reach = side[0] + side[1];
-        }
+        // The distance shrinks by at most the largest motion of each side since it was cached
+        // (a vertex-plane pair: its vertex's).
+        double side[2] = {vertex_motion_[s[0]], 0.0};
+        const int split = i < nvt ? 1 : 2;
+        for (int k = 1; primitives && k < 4; ++k) side[k >= split] = std::max(side[k >= split], vertex_motion_[s[k]]);
+        const double reach = side[0] + side[1];
         if (reach == 0.0) continue;  // (unmoved)
         // An inactive pair whose motion leaves it beyond dhat stays inactive, its distance at least
         // the old one less the motion: a lower bound, like the box gap below, with no kernel.
@@ -166,17 +164,6 @@ double ContactActiveSet::min_squared_distance(const ContactCandidates& candidate
   double min_d = kInf;
   for (double d : distance_) min_d = std::min(min_d, d);
   return min_d;
-}
-
-double ContactActiveSet::squared_distance_at(int64_t i, const PairVertices& s, const double* x) const {
-  if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
-  for (int32_t v : s) {
-    if (v < 0) continue;
-    const double* p = x + 3 * int64_t{v};
-    const double* q = &positions_[3 * int64_t{v}];
-    if (!(p[0] == q[0] && p[1] == q[1] && p[2] == q[2])) return -1.0;
-  }
-  return distance_[i];
 }
 
 double ContactActiveSet::distance_bound_at(int64_t i, const PairVertices& s, int split, const double* x) const {

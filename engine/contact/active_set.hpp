@@ -60,12 +60,10 @@ class ContactActiveSet {
   // Smallest squared distance over the candidates at x (refreshes; +inf without candidates):
   // exact when below dhat^2, else a lower bound that is at least dhat^2 (see the top).
   double min_squared_distance(const ContactCandidates& candidates, const double* x);
-  // Candidate i's squared distance as last refreshed, if that was at x (every vertex of s, its
-  // vertices, exactly where x has it): exact below dhat^2, else a lower bound. -1 otherwise.
-  double squared_distance_at(int64_t i, const PairVertices& s, const double* x) const;
   // A lower bound on candidate i's distance at any x: its cached distance less how far each of
-  // its two sides (vertices s[0, split) and s[split, 4)) is from where it was cached at most.
-  // -1 when the cache does not know the pair or the bound is not positive. [m]
+  // its two sides (vertices s[0, split) and s[split, 4)) is from where it was cached at most
+  // (at the x of the last refresh: the cached distance, exact below dhat). -1 when the cache does
+  // not know the pair or the bound is not positive. [m]
   double distance_bound_at(int64_t i, const PairVertices& s, int split, const double* x) const;
 
   // ---- stencils

@@ -164,9 +164,9 @@ std::array<int32_t, 4> groups_of(const PairVertices& vertices, const int32_t* gr
 
 // Whether a pair whose distance at x is at least `bound` (> 0; else unknown) certainly stays
 // apart on [0, tmax] of the motion x -> y, so that the CCD need not run: its closing reach bounds
-// how far the distance can shrink. Asked to close no more than 80% of it, the distance stays above 0.2 d, above the
-// CCD's gap (at most 0.1 d), and the CCD would find nothing too: the margin covers the rounding
-// of both tests, so the answer is the CCD's own, bit for bit.
+// how far the distance can shrink. Asked to close no more than 80% of it, the distance stays
+// above 0.2 d, above the CCD's gap (at most 0.1 d), and the CCD would find nothing too: the
+// margin covers the rounding of both tests, so the answer is the CCD's own, bit for bit.
 bool stays_apart(const PairVertices& s, int split, const double* x, const double* y, double tmax, double bound) {
   return bound > 0.0 && pair_geometry::closing_reach(s, split, x, y) * tmax <= 0.8 * bound;
 }
