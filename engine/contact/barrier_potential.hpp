@@ -33,6 +33,7 @@
 #include "engine/model.hpp"
 #include "engine/step_profile.hpp"
 
+#include <array>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -207,12 +208,17 @@ class BarrierPotential {
   // (chunks of pairs) per chunk: the earliest impact of each run of one group (group_max_steps)
   std::vector<std::vector<std::pair<int32_t, double>>> run_minima_;
   // linked_max_steps(): the pairs linking groups (indices into the concatenated lists), per chunk
-  // and all, each one's time of impact along the whole motion, whether each collides along the
-  // scaled motion, the fractions after a round, the scaled ends (3n).
+  // and all, each one's time of impact along the whole motion, whether the box or distance test
+  // cleared it for any smaller fractions, the others and their groups, whether each of those
+  // collides along the scaled motion, which groups the last round lowered, the fractions after a
+  // round, the scaled ends (3n).
   std::vector<int64_t> links_;
   std::vector<std::vector<int64_t>> link_chunks_;
   std::vector<double> link_toi_;
-  std::vector<uint8_t> link_hits_;
+  std::vector<uint8_t> link_cleared_;
+  std::vector<int64_t> open_links_;
+  std::vector<std::array<int32_t, 4>> open_groups_;
+  std::vector<uint8_t> link_hits_, lowered_;
   std::vector<double> settled_, scaled_end_;
   // The last masked search's capsules, for sweeps that need none (sweep()): each vertex's swept
   // segment and radius (its pad plus the skin; -1: it did not move in that search, or is a tet
@@ -229,8 +235,10 @@ class BarrierPotential {
   // group_max_steps' pass over the pairs of x -> x1_, lowering alpha; with set_links_aside, the
   // pairs linking groups are listed in links_ instead (linked_max_steps).
   void earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha, bool set_links_aside);
-  // The conservative CCD of candidate i (index into the concatenated lists) from x to y.
-  bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi) const;
+  // The conservative CCD of candidate i (index into the concatenated lists) from x to y. With
+  // `cleared`, whether the answer "no impact" came from the box or the distance test alone,
+  // which then holds for every motion of each vertex along a part of its own (linked_max_steps).
+  bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi, bool* cleared = nullptr) const;
 };
 
 }  // namespace nexdyn

@@ -173,8 +173,15 @@ bool stays_apart(const PairVertices& s, int split, const double* x, const double
 
 }  // namespace
 
-bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi) const {
+bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi,
+                                 bool* cleared) const {
   const ContactCandidates& c = candidates_;
+  // "No impact" from the box or the distance test alone, told to the caller who asked.
+  if (cleared) *cleared = false;
+  auto apart = [cleared] {
+    if (cleared) *cleared = true;
+    return false;
+  };
   const double min_distance = kCcdGapFraction * dhat_;
   // A pair whose paths' boxes stay farther apart than the CCD's gap never comes that close: the
   // CCD would find nothing (pair_geometry.hpp).
@@ -183,16 +190,16 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
   const int64_t nee = static_cast<int64_t>(c.edge_edge.size());
   if (i < nvt) {
     const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
-    if (box_gap_squared(x, y, s, 1) > far_gap2) return false;
-    if (stays_apart(s, 1, x, y, tmax, active_.distance_bound_at(i, s, 1, x))) return false;
+    if (box_gap_squared(x, y, s, 1) > far_gap2) return apart();
+    if (stays_apart(s, 1, x, y, tmax, active_.distance_bound_at(i, s, 1, x))) return apart();
     return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                               point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
   }
   if (i < nvt + nee) {
     const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i - nvt]);
-    if (box_gap_squared(x, y, s, 2) > far_gap2) return false;
-    if (stays_apart(s, 2, x, y, tmax, active_.distance_bound_at(i, s, 2, x))) return false;
+    if (box_gap_squared(x, y, s, 2) > far_gap2) return apart();
+    if (stays_apart(s, 2, x, y, tmax, active_.distance_bound_at(i, s, 2, x))) return apart();
     return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                          point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);
@@ -258,6 +265,7 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
   if (links_.empty()) return;
   const int64_t num_links = static_cast<int64_t>(links_.size());
   link_toi_.resize(num_links);
+  link_cleared_.resize(num_links);
   auto link_groups = [&](int64_t k) { return groups_of(candidate_vertices(model_, c, links_[k]), group_of_vertex); };
 
   // 2. The links along the whole motion, each lowering all its groups. An impact later than the
@@ -268,7 +276,9 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
       for (int32_t g : link_groups(k))
         if (g >= 0) tmax = std::max(tmax, alpha[g]);
       double toi = 1.0;
-      link_toi_[k] = pair_ccd(links_[k], x, y, tmax, toi) ? toi : 1.0;
+      bool cleared = false;
+      link_toi_[k] = pair_ccd(links_[k], x, y, tmax, toi, &cleared) ? toi : 1.0;
+      link_cleared_[k] = cleared;
     }
   }, kPairGrain);
   for (int64_t k = 0; k < num_links; ++k)
@@ -281,9 +291,21 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
   // along a part of its swept path that step 2 cleared (every one of its groups' caps is at most
   // its time of impact). Each link that comes closer than the CCD's gap lowers its groups to the
   // smallest fraction among them. Fractions only fall, to values already present, so the rounds
-  // end; at worst every group of a linked set takes the set's smallest cap.
+  // end; at worst every group of a linked set takes the set's smallest cap. A link that step 2's
+  // box or distance test cleared stays clear: each of its vertices now moves along a part of the
+  // path step 2 saw (its group's fraction is at most that step's tmax), so the boxes hold and the
+  // closing reach is no larger; only the others are checked.
+  open_links_.clear();
+  for (int64_t k = 0; k < num_links; ++k)
+    if (!link_cleared_[k]) open_links_.push_back(k);
+  const int64_t num_open = static_cast<int64_t>(open_links_.size());
+  open_groups_.resize(num_open);
+  for (int64_t o = 0; o < num_open; ++o) open_groups_[o] = link_groups(open_links_[o]);
+  // A link whose groups kept their fractions since it was last checked moves as it did then: only
+  // links with a group lowered in the last round are checked again.
+  lowered_.assign(num_groups, 1);
   settled_.assign(alpha, alpha + num_groups);
-  link_hits_.resize(num_links);
+  link_hits_.resize(num_open);
   const int64_t n = model_.num_dofs();
   scaled_end_.resize(n);
   for (;;) {
@@ -293,26 +315,30 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
         scaled_end_[i] = g < 0 ? x[i] : x[i] + alpha[g] * (y[i] - x[i]);
       }
     }, 8192);
-    parallel_for(num_links, [&](int64_t b, int64_t e) {
-      for (int64_t k = b; k < e; ++k) {
-        link_hits_[k] = 0;
-        const std::array<int32_t, 4> groups = link_groups(k);
-        bool same = true;
-        for (int32_t g : groups) same = same && (g < 0 || alpha[g] == alpha[groups[0]]);
+    parallel_for(num_open, [&](int64_t b, int64_t e) {
+      for (int64_t o = b; o < e; ++o) {
+        link_hits_[o] = 0;
+        const std::array<int32_t, 4>& groups = open_groups_[o];
+        bool same = true, lowered = false;
+        for (int32_t g : groups) {
+          same = same && (g < 0 || alpha[g] == alpha[groups[0]]);
+          lowered = lowered || (g >= 0 && lowered_[g]);
+        }
         double toi = 1.0;
-        if (!same) link_hits_[k] = pair_ccd(links_[k], x, scaled_end_.data(), 1.0, toi);
+        if (!same && lowered) link_hits_[o] = pair_ccd(links_[open_links_[o]], x, scaled_end_.data(), 1.0, toi);
       }
     }, kPairGrain);
     bool lowered = false;
-    for (int64_t k = 0; k < num_links; ++k) {
-      if (!link_hits_[k]) continue;
-      const std::array<int32_t, 4> groups = link_groups(k);
+    for (int64_t o = 0; o < num_open; ++o) {
+      if (!link_hits_[o]) continue;
+      const std::array<int32_t, 4>& groups = open_groups_[o];
       double smallest = 1.0;
       for (int32_t g : groups)
         if (g >= 0) smallest = std::min(smallest, alpha[g]);
       for (int32_t g : groups)
         if (g >= 0 && smallest < settled_[g]) settled_[g] = smallest, lowered = true;
     }
+    for (int32_t g = 0; g < num_groups; ++g) lowered_[g] = settled_[g] != alpha[g];
     if (!lowered) return;
     std::copy(settled_.begin(), settled_.end(), alpha);
   }
