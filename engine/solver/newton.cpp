@@ -62,6 +62,13 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   direction_.resize(n);
   trial_.resize(n);
   vertex_token_.assign(model.num_vertices, 0);
+  // The CCD's units (cap_steps): bodies, those joined by a ball joint as one.
+  DisjointSets units;
+  units.reset(static_cast<int32_t>(model.bodies.size()));
+  for (const Joint& joint : model.joints)
+    if (joint.type == JointType::ball) units.join(model.vertex_body[joint.vertex[0]], model.vertex_body[joint.vertex[4]]);
+  unit_of_body_.resize(model.bodies.size());
+  for (int32_t b = 0; b < units.size(); ++b) unit_of_body_[b] = units.find(b);
   hold({}, false);
 }
 
@@ -408,12 +415,15 @@ int32_t NewtonSolver::build_groups(const double* x) {
 }
 
 bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& result) {
-  // Each moving island's largest collision-free fraction of its own motion, capped by its own
-  // pairs and by those linking it to other islands of its group, which are then checked along
-  // the motion the islands' caps give together (BarrierPotential::linked_max_steps). One cap per
-  // group instead would hold a body to the fraction that a collision elsewhere in its group
-  // allows, iteration after iteration. The direction is scaled island by island; the group's
-  // line search then backtracks along it. A group's cap (for the history) is its smallest island's.
+  // Each moving body's largest collision-free fraction of its own motion, capped by its own pairs
+  // and by those linking it to other bodies, which are then checked along the motion the bodies'
+  // caps give together (BarrierPotential::linked_max_steps). One cap per island instead held a
+  // landing pile, hundreds of bodies joined by their contacts into one island, to the fraction
+  // that its worst pair allowed, iteration after iteration. The direction is scaled body by body
+  // (bodies joined by a ball joint count as one). Scaled so, an island's direction is no longer
+  // Newton's and need not descend: if it does not in some island (g . D p >= 0), every island
+  // takes one cap, that of its own pairs and links. A group's cap (for the history) is its
+  // smallest one; the group's line search then backtracks along the scaled direction.
   const int32_t num_islands = islands_.num_islands();
   island_of_moving_vertex_.resize(model_.num_vertices);
   for (int32_t v = 0; v < model_.num_vertices; ++v) {
@@ -421,25 +431,42 @@ bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& 
     island_of_moving_vertex_[v] = i >= 0 && island_moves_[i] ? i : -1;
   }
   potential_.map().follow_groups(island_of_moving_vertex_.data());
-  island_alpha_.assign(num_islands, 1.0);
-  potential_.linked_max_steps(x, island_of_moving_vertex_.data(), num_islands, island_alpha_.data());
+  const int64_t n = model_.num_dofs();
+  unit_of_moving_vertex_.resize(model_.num_vertices);
+  for (int32_t v = 0; v < model_.num_vertices; ++v)
+    unit_of_moving_vertex_[v] = island_of_moving_vertex_[v] >= 0 ? unit_of_body_[model_.vertex_body[v]] : -1;
+  unit_alpha_.assign(unit_of_body_.size(), 1.0);
+  potential_.linked_max_steps(x, unit_of_moving_vertex_.data(), static_cast<int32_t>(unit_alpha_.size()),
+                              unit_alpha_.data());
+  island_slope_.assign(num_islands, 0.0);
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t u = unit_of_moving_vertex_[i / 3];
+    if (u >= 0) island_slope_[island_of_moving_vertex_[i / 3]] += grad_[i] * direction_[i] * unit_alpha_[u];
+  }
+  bool descends = true;
+  for (int32_t i = 0; i < num_islands; ++i) descends = descends && (!island_moves_[i] || island_slope_[i] < 0.0);
+  if (!descends) {
+    std::copy(island_of_moving_vertex_.begin(), island_of_moving_vertex_.end(), unit_of_moving_vertex_.begin());
+    unit_alpha_.assign(num_islands, 1.0);
+    potential_.linked_max_steps(x, unit_of_moving_vertex_.data(), num_islands, unit_alpha_.data());
+  }
   group_alpha_.assign(num_groups, 1.0);
-  for (int32_t i = 0; i < num_islands; ++i) {
-    if (!island_moves_[i]) continue;
-    if (!(island_alpha_[i] > 0.0)) {
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    const int32_t u = unit_of_moving_vertex_[v];
+    if (u < 0) continue;
+    if (!(unit_alpha_[u] > 0.0)) {
       result.status = StepStatus::line_search_failed;
       result.message = "continuous collision detection allows no motion along the Newton direction";
       return false;
     }
-    double& cap = group_alpha_[group_of_island_[i]];
-    cap = std::min(cap, island_alpha_[i]);
+    double& cap = group_alpha_[group_of_vertex_[v]];
+    cap = std::min(cap, unit_alpha_[u]);
   }
   group_slope_.assign(num_groups, 0.0);
-  const int64_t n = model_.num_dofs();
   for (int64_t i = 0; i < n; ++i) {
     const int32_t g = group_of_vertex_[i / 3];
     if (g < 0) continue;
-    direction_[i] *= island_alpha_[island_of_moving_vertex_[i / 3]];
+    direction_[i] *= unit_alpha_[unit_of_moving_vertex_[i / 3]];
     group_slope_[g] += grad_[i] * direction_[i];
   }
   return true;

@@ -193,7 +193,10 @@ class NewtonSolver {
   std::vector<int32_t> group_of_island_;      // (islands) -1 = does not move
   std::vector<int32_t> group_of_vertex_;      // (num_vertices) -1 = does not move
   std::vector<int32_t> island_of_moving_vertex_;  // (num_vertices) its island if that moves, else -1
-  std::vector<double> island_alpha_;          // (islands) CCD cap of each moving island
+  std::vector<int32_t> unit_of_body_;         // (bodies) the CCD cap's unit: the body, or a jointed set's smallest
+  std::vector<int32_t> unit_of_moving_vertex_;  // (num_vertices) its unit (or island) if it moves, else -1
+  std::vector<double> unit_alpha_;            // (units) CCD cap of each unit
+  std::vector<double> island_slope_;          // (islands) g . D p of the scaled direction
   // (groups) step length, slope g.p, energies at x and at the trial point, accepted
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;
