@@ -66,7 +66,8 @@ NewtonSolver::NewtonSolver(const Model& model, IncrementalPotential& potential)
   DisjointSets units;
   units.reset(static_cast<int32_t>(model.bodies.size()));
   for (const Joint& joint : model.joints)
-    if (joint.type == JointType::ball) units.join(model.vertex_body[joint.vertex[0]], model.vertex_body[joint.vertex[4]]);
+    if (joint.type == JointType::ball)
+      units.join(model.vertex_body[joint.vertex[0]], model.vertex_body[joint.vertex[4]]);
   unit_of_body_.resize(model.bodies.size());
   for (int32_t b = 0; b < units.size(); ++b) unit_of_body_[b] = units.find(b);
   hold({}, false);
