@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -121,6 +122,28 @@ void bend_x_tilde(Problem& p, double amount = 0.3) {
       const double x = p.model.rest_positions[3 * v];
       p.x_tilde[3 * v + 1] -= amount * x * x;
     }
+}
+
+// Cube 0 (edge 0.2 m) hangs 5 mm over the plane y = 0; cube 1, the same, is centred at
+// `translate` ("x, y, z"). dhat = 1 mm is given to the Problem.
+std::string cubes_over_plane(const std::string& translate) {
+  return R"({
+    "gravity": [0, -9.81, 0], "time": { "dt": 0.1 },
+    "contact": { "dhat": 0.001 },
+    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
+    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [0, 0.105, 0] },
+                { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [)" +
+         translate + R"(] } ],
+    "obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ]
+  })";
+}
+
+// The lowest y of these vertices over every accepted point of the history.
+double lowest_height(const std::vector<NewtonIterate>& history, const std::vector<int32_t>& vertices) {
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const NewtonIterate& it : history)
+    for (int32_t v : vertices) lowest = std::min(lowest, it.x[3 * v + 1]);
+  return lowest;
 }
 
 // The Armijo condition of newton.cpp (sufficient decrease 1e-4 of the slope, with its round-off
@@ -288,14 +311,7 @@ TEST_CASE("newton: vertices held in their islands keep the islands' analyses and
 TEST_CASE("newton: the CCD cap keeps every iterate above a plane, and caps only the group that would cross it") {
   // Cube 0 hangs 5 mm over a plane and x_tilde throws it 0.5 m through it; cube 1, far away, flies
   // freely. With dhat = 1 mm the barrier cannot see cube 0 coming: only the CCD stops it.
-  Problem p(R"({
-    "gravity": [0, -9.81, 0], "time": { "dt": 0.1 },
-    "contact": { "dhat": 0.001 },
-    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
-    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [0, 0.105, 0] },
-                { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [5, 3, 0] } ],
-    "obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ]
-  })", "newton_plane", 0.001);
+  Problem p(cubes_over_plane("5, 3, 0"), "newton_plane", 0.001);
   const std::vector<int32_t> falling = p.vertices_of(0), flying = p.vertices_of(1);
   for (int32_t v : falling) p.x_tilde[3 * v + 1] -= 0.5;
   for (int32_t v : flying) p.x_tilde[3 * v] += 0.1;
@@ -303,9 +319,7 @@ TEST_CASE("newton: the CCD cap keeps every iterate above a plane, and caps only 
   const NewtonResult r = p.solve(x, 1e-5);
   REQUIRE(r.status == StepStatus::ok);
   // Every accepted point keeps cube 0 strictly above the plane.
-  double lowest = 1.0;
-  for (const NewtonIterate& it : p.history)
-    for (int32_t v : falling) lowest = std::min(lowest, it.x[3 * v + 1]);
+  const double lowest = lowest_height(p.history, falling);
   MESSAGE("lowest vertex of the falling cube over ", p.history.size(), " iterates: ", lowest, " m");
   CHECK(lowest > 0.0);
   for (int32_t v : falling) CHECK(x[3 * v + 1] > 0.0);
@@ -331,14 +345,7 @@ TEST_CASE("newton: a body the CCD caps does not hold back the other bodies of it
   // thrown 0.1 m down by x_tilde. Cube 0 hangs 5 mm over a plane, cube 1 15 cm: only cube 0 would
   // cross the plane, and the two slide along their facing sides, which the CCD checks along the
   // motion the two caps give together. So cube 1 takes its whole step while cube 0 is capped.
-  Problem p(R"({
-    "gravity": [0, -9.81, 0], "time": { "dt": 0.1 },
-    "contact": { "dhat": 0.001 },
-    "materials": { "m": { "model": "neohookean", "youngs": 1e5, "poisson": 0.3, "density": 1000 } },
-    "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [0, 0.105, 0] },
-                { "box": { "size": [0.2, 0.2, 0.2], "cells": [1, 1, 1] }, "material": "m", "translate": [0.2005, 0.25, 0] } ],
-    "obstacles": [ { "plane": { "point": [0, 0, 0], "normal": [0, 1, 0] } } ]
-  })", "newton_body_caps", 0.001);
+  Problem p(cubes_over_plane("0.2005, 0.25, 0"), "newton_body_caps", 0.001);
   const std::vector<int32_t> low = p.vertices_of(0), high = p.vertices_of(1);
   for (int32_t v : low) p.x_tilde[3 * v + 1] -= 0.1;
   for (int32_t v : high) p.x_tilde[3 * v + 1] -= 0.1;
@@ -360,10 +367,7 @@ TEST_CASE("newton: a body the CCD caps does not hold back the other bodies of it
   MESSAGE("first iteration: cube 0 down ", drop(low), " m, cube 1 down ", drop(high), " m");
   CHECK(drop(low) < 0.005);  // still above the plane
   CHECK(drop(high) > 0.05);  // most of its 0.1 m; one cap for the island would hold it under 5 mm
-  double lowest = 1.0;
-  for (const NewtonIterate& it : p.history)
-    for (int32_t v : low) lowest = std::min(lowest, it.x[3 * v + 1]);
-  CHECK(lowest > 0.0);
+  CHECK(lowest_height(p.history, low) > 0.0);
   check_armijo(p.history);
 }
 
