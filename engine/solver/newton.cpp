@@ -474,10 +474,12 @@ bool NewtonSolver::cap_steps(const double* x, int32_t num_groups, NewtonResult& 
 }
 
 // The stages of one solve: per iteration, the direction on the islands not yet converged, the
-// islands that still move, their groups and CCD caps, the line search, the terms' adaptive updates.
+// islands that still move, their groups and CCD caps, the line search, the lengthening of full
+// steps that fell short (extend_step), the terms' adaptive updates.
 NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& settings) {
   NewtonResult result;
   turn_reach_ = settings.turn_reach;
+  extend_steps_ = settings.extend_steps;
   forget_unused_systems();
   // Islands whose potential changed since the last solve (a new friction lag) start unfrozen.
   for (const std::vector<int32_t>* stencils : potential_.take_changed_stencils()) thaw(*stencils);
@@ -506,12 +508,16 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     if (!any_moving) return result;
     const int32_t num_groups = build_groups(x.data());
     if (!cap_steps(x.data(), num_groups, result)) return result;
-    if (record) record->ccd_cap = group_alpha_;
+    group_cap_.assign(group_alpha_.begin(), group_alpha_.end());
     if (!line_search(x.data(), num_groups, result)) return result;
+    extend_step(x.data(), num_groups);
     x.swap(trial_);
     // Followers exactly at J q again (the line search moved them along J p, up to rounding).
     potential_.map().follow(x.data());
     if (record) {
+      record->extended = extended_;
+      record->full_step_decrease = extended_ ? full_step_decrease_ : 0.0;
+      record->ccd_cap = group_cap_;
       record->slope = group_slope_;
       record->start_energy = group_start_;
       record->accepted_energy = group_trial_;

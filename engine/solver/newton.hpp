@@ -19,7 +19,9 @@
 // checked again along the motion the two give together (a collision there gives both the
 // smaller one). The sweep's pairs also join islands into groups, which might meet along the
 // step: each group backtracks on its own along its islands' capped directions until its own
-// part of the energy decreases enough (Armijo). Every trial point is intersection-free and its
+// part of the energy decreases enough (Armijo); where a full step fell by more than the
+// quadratic model said (its curvature clamped by the projection), the step is tried longer
+// (extend_step). Every trial point is intersection-free and its
 // barrier is evaluated over the pairs close to the whole segment. A failure is returned as a
 // StepStatus with a sentence saying why, never thrown (a matrix that is not positive definite, a
 // CHOLMOD failure, a system too large for the solver's tables: island_system.hpp,
@@ -59,6 +61,9 @@ struct NewtonSettings {
   // build_groups); turns that go further are searched again (turned_point_valid). Ten dhat
   // from the simulation (engine/simulation_solve.cpp, kTurnReach); 0 without contact.
   double turn_reach = 0.0;
+  // Full steps that the energy falls along faster than the quadratic model says are tried longer
+  // (NewtonSolver::extend_step); off only to measure what that changes.
+  bool extend_steps = true;
 };
 
 struct NewtonResult {
@@ -80,6 +85,8 @@ struct NewtonIterate {
   int32_t moving_islands = 0;  // of those, not converged: they moved
   double increment = 0.0;      // largest max|p| / dt of the solved islands [m/s]
   std::vector<double> ccd_cap, slope, start_energy, accepted_energy, step_length;  // (groups)
+  bool extended = false;       // the groups are those of a lengthened direction (extend_step),
+  double full_step_decrease = 0.0;  // which then beat this decrease of the full steps' groups
   std::vector<double> x;       // the accepted point (3n), when asked for
 };
 
@@ -148,6 +155,10 @@ class NewtonSolver {
   // trial points first turn them (CoordinateMap::turn), then, if that fails, go straight.
   bool line_search(const double* x, int32_t num_groups, NewtonResult& result);
   bool line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result);
+  // After the line search: the groups whose full, uncapped step decreased the energy by more than
+  // the quadratic model predicted try a longer one (see the definition); trial_ and the groups'
+  // numbers are then those of the longer steps if they decreased the energy more (extended_).
+  void extend_step(const double* x, int32_t num_groups);
   // Whether group k's trial energy decreased enough (Armijo, with a round-off allowance).
   bool sufficient_decrease(int32_t k) const;
   // The turned trial point is collision-free from the straight one and, if its pairs had to be
@@ -200,12 +211,22 @@ class NewtonSolver {
   // (groups) step length, slope g.p, energies at x and at the trial point, accepted
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;
+  std::vector<double> group_cap_;               // (groups) CCD cap, before the line search's halvings
+  std::vector<double> group_extension_;         // (groups) extend_step's factor on the direction
+  std::vector<double> group_reach_;             // (groups) the largest factor of its vertices so far
+  std::vector<double> vertex_extension_;        // (num_vertices) extend_step's factors so far
+  // extend_step's copy of the full steps' point and groups, restored when the longer steps lose
+  std::vector<double> kept_direction_, kept_trial_, kept_cap_, kept_alpha_, kept_slope_, kept_start_, kept_accepted_;
+  std::vector<int32_t> kept_group_of_vertex_;
+  bool extended_ = false;                       // the last extend_step kept the longer steps,
+  double full_step_decrease_ = 0.0;             // which beat this decrease of the full steps
   std::vector<double> straight_, turn_motion_;  // (3n) turned trial: the straight point, the turn
   std::vector<double> turn_pads_;               // (num_vertices) CoordinateMap::turn_pads, at most turn_reach_
   std::vector<uint8_t> turn_moves_;             // (num_vertices) turned beyond their pads
   std::vector<int32_t> turn_group_;             // (num_vertices) 0 where the turn moves, else -1
   bool turn_swept_ = false;                     // turned_point_valid searched the turn's pairs
   double turn_reach_ = 0.0;                     // NewtonSettings::turn_reach of the solve
+  bool extend_steps_ = true;                    // NewtonSettings::extend_steps of the solve
 };
 
 }  // namespace nexdyn

@@ -18,6 +18,9 @@ namespace {
 // Armijo sufficient-decrease constant and the smallest step length tried before giving up.
 constexpr double kArmijo = 1e-4;
 constexpr double kMinStepLength = 1e-10;
+// extend_step: the longest multiple of a full step tried, and the rounds of lengthening.
+constexpr double kMaxExtension = 8.0;
+constexpr int kExtensionRounds = 3;
 }  // namespace
 
 bool NewtonSolver::line_search(const double* x, int32_t num_groups, NewtonResult& result) {
@@ -128,6 +131,96 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
     }
   }
   return true;
+}
+
+void NewtonSolver::extend_step(const double* x, int32_t num_groups) {
+  // Where the PSD projection of a Hessian clamped negative curvature (a contact's, a compressed
+  // tet's), the model is stiffer along p than the energy: the full step p = -H^-1 g falls short,
+  // and the energy drops by more than the model's -g.p / 2, up to -g.p where it is linear along
+  // p. Left alone, such iterations creep on at a linear rate: the last moving bodies of a landing
+  // pile took 10-20 of them a step (docs/performance.md). Along a group's direction d, with slope
+  // s = g.d < 0 and decrease D = E(x) - E(x + d), the parabola through E(x), s and E(x + d) is
+  // least at s / (2 (D + s)) times d when D < -s (1 / (2 - rho) for a Newton direction whose
+  // decrease is rho times the model's), and falls without end when D >= -s (8x is then taken).
+  // Each group whose full, uncapped step puts that least point at 2 or beyond has its
+  // direction lengthened to there, at most 8x in all, and the direction is swept, capped and
+  // searched from x like any other; kept if the moving groups' energy fell by more in all than
+  // before, and then tried again (at most three rounds).
+  extended_ = false;
+  if (!extend_steps_) return;
+  vertex_extension_.assign(model_.num_vertices, 1.0);
+  for (int round = 0; round < kExtensionRounds; ++round) {
+    group_extension_.assign(num_groups, 1.0);
+    group_reach_.assign(num_groups, 1.0);
+    for (int32_t v = 0; v < model_.num_vertices; ++v)
+      if (group_of_vertex_[v] >= 0)
+        group_reach_[group_of_vertex_[v]] = std::max(group_reach_[group_of_vertex_[v]], vertex_extension_[v]);
+    bool any = false;
+    double decrease_before = 0.0;
+    for (int32_t k = 0; k < num_groups; ++k) {
+      const double decrease = group_start_[k] - group_trial_[k];
+      decrease_before += decrease;
+      if (group_cap_[k] < 1.0 || group_alpha_[k] < 1.0) continue;
+      const double slope = group_slope_[k];
+      const double limit = kMaxExtension / group_reach_[k];
+      const double least = decrease + slope < 0.0 ? slope / (2.0 * (decrease + slope)) : limit;
+      if (!(least >= 2.0) || limit < 2.0) continue;
+      group_extension_[k] = std::min(least, limit);
+      any = true;
+    }
+    if (!any) return;
+    kept_direction_ = direction_;
+    kept_trial_.resize(trial_.size());
+    kept_trial_.swap(trial_);
+    kept_cap_ = group_cap_;
+    kept_alpha_ = group_alpha_;
+    kept_slope_ = group_slope_;
+    kept_start_ = group_start_;
+    kept_accepted_ = group_trial_;
+    kept_group_of_vertex_ = group_of_vertex_;
+    const int64_t n = model_.num_dofs();
+    for (int64_t i = 0; i < n; ++i) {
+      const int32_t g = group_of_vertex_[i / 3];
+      if (g >= 0) direction_[i] *= group_extension_[g];
+    }
+    for (int32_t v = 0; v < model_.num_vertices; ++v)
+      if (group_of_vertex_[v] >= 0) vertex_extension_[v] *= group_extension_[group_of_vertex_[v]];
+    NewtonResult scratch;  // a cap or search that fails here leaves the steps before, not a failure
+    const int32_t groups = build_groups(x);
+    bool longer = cap_steps(x, groups, scratch);
+    if (longer) {
+      group_cap_.assign(group_alpha_.begin(), group_alpha_.end());
+      longer = line_search(x, groups, scratch);
+    }
+    double decrease = 0.0;
+    if (longer) {
+      for (int32_t k = 0; k < groups; ++k) decrease += group_start_[k] - group_trial_[k];
+      longer = decrease > decrease_before;
+    }
+    if (longer) {
+      if (!extended_) full_step_decrease_ = decrease_before;
+      extended_ = true;
+      num_groups = groups;
+      continue;
+    }
+    // The steps before, searched again: the contact candidates and turn searches are then those
+    // of the accepted point (the longer direction's need not cover its turned trial point). The
+    // searches succeeded once; should one fail now, their numbers are put back as they were.
+    direction_.swap(kept_direction_);
+    const int32_t regrouped = build_groups(x);
+    if (cap_steps(x, regrouped, scratch)) {
+      group_cap_.assign(group_alpha_.begin(), group_alpha_.end());
+      if (line_search(x, regrouped, scratch)) return;
+    }
+    trial_.swap(kept_trial_);
+    group_cap_.swap(kept_cap_);
+    group_alpha_.swap(kept_alpha_);
+    group_slope_.swap(kept_slope_);
+    group_start_.swap(kept_start_);
+    group_trial_.swap(kept_accepted_);
+    group_of_vertex_.swap(kept_group_of_vertex_);
+    return;
+  }
 }
 
 }  // namespace nexdyn
