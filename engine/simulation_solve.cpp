@@ -263,8 +263,9 @@ NewtonResult Simulation::solve_with_joints(const StepContext& ctx, int& iteratio
   // friction is above kinetic (start_point): the thrown block of `slope with static friction`
   // then slid 20 steps held partly by static friction, its momentum gaining 17 to 20 a step
   // instead of 21.9. Not there.
-  settings.extend_steps = !(friction_ && friction_->table().has_static_peak());
-  if (friction_ && scene_.contact.friction_iterations < 0 && !friction_->table().has_static_peak()) {
+  const bool static_peak = friction_ && friction_->table().has_static_peak();
+  settings.extend_steps = !static_peak;
+  if (friction_ && scene_.contact.friction_iterations < 0 && !static_peak) {
     // Converged lagging: the friction is re-lagged inside the solve once Newton is near the
     // solution, so that the solve ends close to the lag's fixed point and the re-solves of
     // solve_with_friction are few (measured in docs/performance.md). Not with static friction

@@ -62,7 +62,8 @@ struct NewtonSettings {
   // from the simulation (engine/simulation_solve.cpp, kTurnReach); 0 without contact.
   double turn_reach = 0.0;
   // Full steps that the energy falls along faster than the quadratic model says are tried longer
-  // (NewtonSolver::extend_step); off only to measure what that changes.
+  // (NewtonSolver::extend_step); the simulation turns it off where static friction is above
+  // kinetic (engine/simulation_solve.cpp).
   bool extend_steps = true;
 };
 
@@ -216,7 +217,8 @@ class NewtonSolver {
   std::vector<double> group_reach_;             // (groups) the largest factor of its vertices so far
   std::vector<double> vertex_extension_;        // (num_vertices) extend_step's factors so far
   // extend_step's copy of the full steps' point and groups, restored when the longer steps lose
-  std::vector<double> kept_direction_, kept_trial_, kept_cap_, kept_alpha_, kept_slope_, kept_start_, kept_accepted_;
+  std::vector<double> kept_direction_, kept_trial_, kept_cap_, kept_alpha_, kept_slope_, kept_start_,
+      kept_accepted_;
   std::vector<int32_t> kept_group_of_vertex_;
   bool extended_ = false;                       // the last extend_step kept the longer steps,
   double full_step_decrease_ = 0.0;             // which beat this decrease of the full steps

@@ -148,13 +148,13 @@ void NewtonSolver::extend_step(const double* x, int32_t num_groups) {
   // before, and then tried again (at most three rounds).
   extended_ = false;
   if (!extend_steps_) return;
-  vertex_extension_.assign(model_.num_vertices, 1.0);
   for (int round = 0; round < kExtensionRounds; ++round) {
     group_extension_.assign(num_groups, 1.0);
     group_reach_.assign(num_groups, 1.0);
-    for (int32_t v = 0; v < model_.num_vertices; ++v)
-      if (group_of_vertex_[v] >= 0)
-        group_reach_[group_of_vertex_[v]] = std::max(group_reach_[group_of_vertex_[v]], vertex_extension_[v]);
+    if (round > 0)  // (vertex_extension_ is filled by the first round that lengthens)
+      for (int32_t v = 0; v < model_.num_vertices; ++v)
+        if (group_of_vertex_[v] >= 0)
+          group_reach_[group_of_vertex_[v]] = std::max(group_reach_[group_of_vertex_[v]], vertex_extension_[v]);
     bool any = false;
     double decrease_before = 0.0;
     for (int32_t k = 0; k < num_groups; ++k) {
@@ -183,6 +183,7 @@ void NewtonSolver::extend_step(const double* x, int32_t num_groups) {
       const int32_t g = group_of_vertex_[i / 3];
       if (g >= 0) direction_[i] *= group_extension_[g];
     }
+    if (round == 0) vertex_extension_.assign(model_.num_vertices, 1.0);
     for (int32_t v = 0; v < model_.num_vertices; ++v)
       if (group_of_vertex_[v] >= 0) vertex_extension_[v] *= group_extension_[group_of_vertex_[v]];
     NewtonResult scratch;  // a cap or search that fails here leaves the steps before, not a failure

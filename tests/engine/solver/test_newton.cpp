@@ -57,12 +57,13 @@ struct Problem {
   }
 
   // Solves from x (moved in place) with x_tilde as it is now.
-  NewtonResult solve(std::vector<double>& x, double tolerance, int max_iterations = 100) {
+  NewtonResult solve(std::vector<double>& x, double tolerance, int max_iterations = 100, bool extend_steps = true) {
     potential.begin_step(x_tilde, weights_context(kDt * kDt, kDt * kDt, true));
     NewtonSettings settings;
     settings.tolerance = tolerance;
     settings.max_iterations = max_iterations;
     settings.dt = kDt;
+    settings.extend_steps = extend_steps;
     return solver.solve(x, settings);
   }
 
@@ -258,12 +259,7 @@ TEST_CASE("newton: a full step the energy falls along faster than the model says
     Problem p(bar_json(false), "newton_extend");
     bend_x_tilde(p, 3.0);
     x = p.model.rest_positions;
-    p.potential.begin_step(p.x_tilde, weights_context(kDt * kDt, kDt * kDt, true));
-    NewtonSettings settings;
-    settings.tolerance = 1e-5;
-    settings.dt = kDt;
-    settings.extend_steps = extend;
-    const NewtonResult r = p.solver.solve(x, settings);
+    const NewtonResult r = p.solve(x, 1e-5, 100, extend);
     REQUIRE(r.status == StepStatus::ok);
     history = p.history;
     return r.iterations;
