@@ -392,7 +392,7 @@ void stencil_derivatives(const Model& m, ContactStencilKind kind, EdgeEdgeCase e
         mollified_edge_edge_barrier_gradient_hessian(X0, X1, X2, X3, edge_case, eps_x, dhat2, weight, g,
                                                      Map<Matrix12d>(hess));
       else
-        g = mollified_edge_edge_barrier_gradient(X0, X1, X2, X3, edge_case, eps_x, dhat2, weight);
+        mollified_edge_edge_barrier_gradient(X0, X1, X2, X3, edge_case, eps_x, dhat2, weight, g);
       return;
     }
     default: return;

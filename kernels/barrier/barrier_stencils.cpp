@@ -36,10 +36,17 @@ Eigen::Matrix<double, 12, 9> translation_free_basis() {
 // closest feature is f, placed into the pair's 12 DOFs.
 void edge_edge_feature_derivatives(const ClosestFeature& f, const Eigen::Vector3d (&X)[4], Vector12d& g,
                                    Matrix12d* H) {
-  g.setZero();
   if (H) H->setZero();
   auto scatter = [&](const auto& gr, auto&& hessian, int n) {
-    for (int i = 0; i < n; ++i) g.segment<3>(3 * f.idx[i]) = gr.template segment<3>(3 * i);
+    // The points the feature leaves out get zeros one by one: g.setZero() first is a 96-byte
+    // memset, which gcc's tuning for AMD Zen emits as `rep stos`, slow to start for so few bytes.
+    bool in_feature[4] = {false, false, false, false};
+    for (int i = 0; i < n; ++i) {
+      g.segment<3>(3 * f.idx[i]) = gr.template segment<3>(3 * i);
+      in_feature[f.idx[i]] = true;
+    }
+    for (int p = 0; p < 4; ++p)
+      if (!in_feature[p]) g.segment<3>(3 * p).setZero();
     if (!H) return;
     const auto hr = hessian();
     for (int i = 0; i < n; ++i)
@@ -68,13 +75,48 @@ double cross_squarednorm(const Eigen::Vector3d (&X)[4]) {
   return (std::fma(n0, n0, 0.0) + std::fma(n1, n1, 0.0)) + std::fma(n2, n2, 0.0);
 }
 
-// The derivatives of c, each compiled on its own (never inlined), as the engine called them before
-// these kernels moved here: inlined into the product rule below, the compiler fuses some of
-// their multiply-adds differently.
-[[gnu::noinline]] Vector12d cross_squarednorm_gradient(const Eigen::Vector3d (&X)[4]) {
-  return edge_edge_cross_squarednorm_gradient(X[0], X[1], X[2], X[3]);
+// u . v as the kernel below rounds it: the x and y products rounded and summed, the z product
+// fused in (fma(x, y, 0) is a product that cannot be fused into the sum).
+double rounded_dot(const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
+  return std::fma(u[2], v[2], std::fma(u[0], v[0], 0.0) + std::fma(u[1], v[1], 0.0));
 }
 
+// dc/dx (edge_edge_cross_squarednorm_gradient) with its roundings fixed, those the engine's
+// compiled kernel had when it was called out of line: dc/dea1 = -dc/dea0 = ga and dc/deb1 =
+// -dc/deb0 = gb with ga_k = 2 fma(-(ea . eb), eb_k, |eb|^2 ea_k), gb_k = 2 fma(-(ea . eb), ea_k,
+// |ea|^2 eb_k). Inline, so that the caller gets it in registers (the out-of-line call returned
+// it through memory in 16-byte stores, which the caller's 32-byte loads could not forward from:
+// a fifth of the mollified gradient's time).
+struct CrossGradient {
+  double ga[3], gb[3];
+};
+
+CrossGradient cross_squarednorm_gradient_halves(const Eigen::Vector3d (&X)[4]) {
+  const Eigen::Vector3d a = X[1] - X[0], b = X[3] - X[2];
+  const double ab = rounded_dot(a, b), aa = rounded_dot(a, a), bb = rounded_dot(b, b);
+  CrossGradient g;
+  for (int k = 0; k < 3; ++k) {
+    g.ga[k] = 2.0 * std::fma(-ab, b[k], bb * a[k]);
+    g.gb[k] = 2.0 * std::fma(-ab, a[k], aa * b[k]);
+  }
+  return g;
+}
+
+Vector12d cross_squarednorm_gradient(const Eigen::Vector3d (&X)[4]) {
+  const CrossGradient h = cross_squarednorm_gradient_halves(X);
+  Vector12d g;
+  for (int k = 0; k < 3; ++k) {
+    g[k] = -h.ga[k];
+    g[3 + k] = h.ga[k];
+    g[6 + k] = -h.gb[k];
+    g[9 + k] = h.gb[k];
+  }
+  return g;
+}
+
+// The Hessian of c, compiled on its own (never inlined), as the engine called it before these
+// kernels moved here: inlined into the product rule below, the compiler fuses some of its
+// multiply-adds differently.
 [[gnu::noinline]] Matrix12d cross_squarednorm_hessian(const Eigen::Vector3d (&X)[4]) {
   return edge_edge_cross_squarednorm_hessian(X[0], X[1], X[2], X[3]);
 }
@@ -108,17 +150,47 @@ Mollifier mollifier(const Eigen::Vector3d (&X)[4], double eps_x, Matrix12d* hess
   return out;
 }
 
-// The mollified stencil's gradient and, with `hessian`, its projected Hessian.
+// w (m b' grad d + b grad m), the mollified stencil's gradient without its Hessian, from the
+// barrier's b and b' and the distance's gradient gd: each entry w fma(b, m' dc/dx_i, m b' gd_i),
+// the roundings of the product rule below, formed entry by entry so that nothing goes through
+// memory in pieces of other widths (the caller's vector loads could not forward such stores).
+// Outside the band (m = 1, m' = 0) the second term is a zero (whose only effect is to turn a -0
+// into +0: kept, so that every bit stays as it was).
+void mollified_gradient(const Eigen::Vector3d (&X)[4], double eps_x, double b, double b1, double w,
+                        const Vector12d& gd, double* gradient) {
+  const double c = cross_squarednorm(X);
+  if (!(c < eps_x)) {
+    for (int i = 0; i < 12; ++i) gradient[i] = w * (b1 * gd[i] + 0.0);
+    return;
+  }
+  const double q = c / eps_x;
+  const double dm = 2.0 * (1.0 - q) / eps_x;
+  const double mb1 = ((2.0 - q) * q) * b1;
+  const CrossGradient gc = cross_squarednorm_gradient_halves(X);
+  for (int k = 0; k < 3; ++k) {
+    gradient[k] = w * std::fma(b, dm * -gc.ga[k], mb1 * gd[k]);
+    gradient[3 + k] = w * std::fma(b, dm * gc.ga[k], mb1 * gd[3 + k]);
+    gradient[6 + k] = w * std::fma(b, dm * -gc.gb[k], mb1 * gd[6 + k]);
+    gradient[9 + k] = w * std::fma(b, dm * gc.gb[k], mb1 * gd[9 + k]);
+  }
+}
+
+// The mollified stencil's gradient (12 entries from `gradient`) and, with `hessian`, its
+// projected Hessian. One function for both, so that the distance's roundings (which depend on
+// the code the compiler inlines them into) are the same in both.
 void mollified_derivatives(const Eigen::Vector3d (&X)[4], EdgeEdgeCase ec, double eps_x, double dhat2, double w,
-                           Vector12d& gradient, Matrix12d* hessian) {
+                           double* gradient, Matrix12d* hessian) {
   const double d = edge_edge_distance(X[0], X[1], X[2], X[3], ec);
   Vector12d gd;
   Matrix12d Hd, Hm;
   edge_edge_feature_derivatives(closest_feature(ec), X, gd, hessian ? &Hd : nullptr);
-  const Mollifier m = mollifier(X, eps_x, hessian ? &Hm : nullptr);
   const auto [b, b1, b2] = barrier_values(d, dhat2);  // one log for the three
-  gradient = w * (m.m * b1 * gd + b * m.gradient);
-  if (!hessian) return;
+  if (!hessian) {
+    mollified_gradient(X, eps_x, b, b1, w, gd, gradient);
+    return;
+  }
+  const Mollifier m = mollifier(X, eps_x, &Hm);
+  Eigen::Map<Vector12d>{gradient} = w * (m.m * b1 * gd + b * m.gradient);
   const Vector12d& gm = m.gradient;
   Matrix12d H = m.m * (b2 * gd * gd.transpose() + b1 * Hd) + b1 * (gd * gm.transpose() + gm * gd.transpose()) + b * Hm;
   H *= w;
@@ -146,17 +218,17 @@ void project_psd_translation_free(Matrix12d& H) {
 Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
                                                const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, double eps_x,
                                                double dhat2, double weight) {
-  return mollified_edge_edge_barrier_gradient(ea0, ea1, eb0, eb1, edge_edge_case(ea0, ea1, eb0, eb1), eps_x, dhat2,
-                                              weight);
+  Vector12d gradient;
+  mollified_edge_edge_barrier_gradient(ea0, ea1, eb0, eb1, edge_edge_case(ea0, ea1, eb0, eb1), eps_x, dhat2, weight,
+                                       gradient);
+  return gradient;
 }
 
-Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
-                                               const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, EdgeEdgeCase ec,
-                                               double eps_x, double dhat2, double weight) {
+void mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
+                                          const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, EdgeEdgeCase ec,
+                                          double eps_x, double dhat2, double weight, Eigen::Ref<Vector12d> gradient) {
   const Eigen::Vector3d X[4] = {ea0, ea1, eb0, eb1};
-  Vector12d gradient;
-  mollified_derivatives(X, ec, eps_x, dhat2, weight, gradient, nullptr);
-  return gradient;
+  mollified_derivatives(X, ec, eps_x, dhat2, weight, gradient.data(), nullptr);
 }
 
 void mollified_edge_edge_barrier_gradient_hessian(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
@@ -175,7 +247,7 @@ void mollified_edge_edge_barrier_gradient_hessian(const Eigen::Vector3d& ea0, co
   const Eigen::Vector3d X[4] = {ea0, ea1, eb0, eb1};
   Vector12d g;
   Matrix12d H;
-  mollified_derivatives(X, ec, eps_x, dhat2, weight, g, &H);
+  mollified_derivatives(X, ec, eps_x, dhat2, weight, g.data(), &H);
   gradient = g;
   projected_hessian = H;
 }

@@ -308,10 +308,12 @@ Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const
                                                const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, double eps_x,
                                                double dhat2, double weight);
 // The same with d's closest-feature case given: it must be edge_edge_case(ea0, ea1, eb0, eb1)
-// (the contact active set keeps it from its own classification at the same points).
-Vector12d mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
-                                               const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, EdgeEdgeCase ec,
-                                               double eps_x, double dhat2, double weight);
+// (the contact active set keeps it from its own classification at the same points). Written
+// into `gradient` (a stencil's slot in the caller's buffer: a returned vector went through the
+// stack, and its stores could not be forwarded to the copy's wider loads).
+void mollified_edge_edge_barrier_gradient(const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1,
+                                          const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1, EdgeEdgeCase ec,
+                                          double eps_x, double dhat2, double weight, Eigen::Ref<Vector12d> gradient);
 
 // hess E = w (m (b'' gd gd^T + b' hess d) + b' (gd gm^T + gm gd^T) + b hess m), projected with
 // project_psd_translation_free; gd, gm: the gradients of d and m.
