@@ -162,6 +162,8 @@ class NewtonSolver {
   void extend_step(const double* x, int32_t num_groups);
   // Whether group k's trial energy decreased enough (Armijo, with a round-off allowance).
   bool sufficient_decrease(int32_t k) const;
+  // That allowance: the error of summing group k's energy at its start point.
+  double energy_noise(int32_t k) const;
   // The turned trial point is collision-free from the straight one and, if its pairs had to be
   // searched again, every group still decreases with them (they then cover the accepted point).
   bool turned_point_valid(const double* x, int32_t num_groups);

@@ -82,9 +82,10 @@ bool NewtonSolver::turned_point_valid(const double* x, int32_t num_groups) {
   return true;
 }
 
+double NewtonSolver::energy_noise(int32_t k) const { return 1e-13 * std::max(1.0, std::abs(group_start_[k])); }
+
 bool NewtonSolver::sufficient_decrease(int32_t k) const {
-  const double noise = 1e-13 * std::max(1.0, std::abs(group_start_[k]));
-  return group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + noise;
+  return group_trial_[k] <= group_start_[k] + kArmijo * group_alpha_[k] * group_slope_[k] + energy_noise(k);
 }
 
 bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result) {
@@ -142,9 +143,9 @@ void NewtonSolver::extend_step(const double* x, int32_t num_groups) {
   // s = g.d < 0 and decrease D = E(x) - E(x + d), the parabola through E(x), s and E(x + d) is
   // least at s / (2 (D + s)) times d when D < -s (1 / (2 - rho) for a Newton direction whose
   // decrease is rho times the model's), and falls without end when D >= -s (8x is then taken).
-  // Each group whose full, uncapped step puts that least point at 2 or beyond has its
-  // direction lengthened to there, at most 8x in all, and the direction is swept, capped and
-  // searched from x like any other; kept if the moving groups' energy fell by more in all than
+  // Each group whose full, uncapped step (its slope above the energy's round-off) puts that
+  // least point at 2 or beyond has its direction lengthened to there, at most 8x in all, and the
+  // direction is swept, capped and searched from x like any other; kept if the moving groups' energy fell by more in all than
   // before, and then tried again (at most three rounds).
   extended_ = false;
   if (!extend_steps_) return;
@@ -162,6 +163,7 @@ void NewtonSolver::extend_step(const double* x, int32_t num_groups) {
       decrease_before += decrease;
       if (group_cap_[k] < 1.0 || group_alpha_[k] < 1.0) continue;
       const double slope = group_slope_[k];
+      if (-slope <= energy_noise(k)) continue;  // the decrease is round-off: no curvature to read
       const double limit = kMaxExtension / group_reach_[k];
       const double least = decrease + slope < 0.0 ? slope / (2.0 * (decrease + slope)) : limit;
       if (!(least >= 2.0) || limit < 2.0) continue;
