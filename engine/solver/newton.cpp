@@ -492,6 +492,7 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     return result;
   }
   int relags = 0;
+  int lag_start = 0;  // the iteration the current lag's convergence began at
   for (int it = 0; it < settings.max_iterations; ++it) {
     stop_point(SafePoint::newton_iteration);
     if (!solve_direction(x.data(), it, result)) return result;
@@ -528,8 +529,11 @@ NewtonResult NewtonSolver::solve(std::vector<double>& x, const NewtonSettings& s
     for (const std::vector<int32_t>* stencils : potential_.end_iteration(x.data())) thaw(*stencils);
     // Near the solution, the caller may bring lagged quantities up to x (a friction lag): the
     // islands whose potential that changed are thawed, and the solve goes on with it.
-    if (settings.relag && relags < settings.max_relags && result.increment < settings.relag_below) {
+    const int lag_cost = it + 1 - lag_start, left = settings.max_iterations - (it + 1);
+    if (settings.relag && relags < settings.max_relags && result.increment < settings.relag_below &&
+        left >= lag_cost) {
       ++relags;
+      lag_start = it + 1;
       if (settings.relag(x.data()))
         for (const std::vector<int32_t>* stencils : potential_.take_changed_stencils()) thaw(*stencils);
     }

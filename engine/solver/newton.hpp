@@ -52,7 +52,10 @@ struct NewtonSettings {
   // lagging): after an iteration whose increment is below relag_below [m/s], at most max_relags
   // times a solve, relag(x) re-lags at the accepted point and says whether the potential changed
   // (the islands of its changed stencils are then thawed). Without it, a caller that lags at each
-  // solution re-solves from there, and each re-solve restarts Newton's convergence.
+  // solution re-solves from there, and each re-solve restarts Newton's convergence. A re-lag is
+  // taken only while the solve has as many iterations left as the last lag took to converge
+  // (the first: the iterations since the start): each re-lag restarts convergence, so lags
+  // taken near the limit turned a solve that had converged under every lag into a failed one.
   std::function<bool(const double*)> relag;
   double relag_below = 0.0;
   int max_relags = 0;

@@ -3,8 +3,8 @@
 // nonlinear problem against a much tighter solve, the Armijo condition of every
 // group at every iteration, the CCD cap that keeps each iterate on the right side of a plane (and
 // caps only the group, and within an island only the body, that needs it), full steps lengthened
-// where the projected model is stiffer than the energy, converged islands
-// left alone, and on failure x at the last accepted point; a linear solver that fails (a Hessian
+// where the projected model is stiffer than the energy, re-lags inside a solve that stop before
+// the iteration limit, converged islands left alone, and on failure x at the last accepted point; a linear solver that fails (a Hessian
 // that is not positive definite, CHOLMOD out of memory) gives a status, not an exception, and the
 // next solve works again. The solver's history (NewtonSolver::set_history) shows what each
 // iteration did.
@@ -285,6 +285,52 @@ TEST_CASE("newton: a full step the energy falls along faster than the model says
   check_armijo(longer);  // along the lengthened direction, with its slope
   // The same minimiser: each stops within twice its last direction of it (the test above).
   CHECK(max_difference(x_full, x_longer) <= 4.0 * 1e-5 * kDt);
+}
+
+TEST_CASE("newton: re-lags stop while the solve has fewer iterations left than a lag takes, so it converges") {
+  // A lag that moves the minimiser (here x_tilde, bent further by each of the first four re-lags,
+  // as a new friction lag moves a sliding body) restarts Newton's convergence. Re-lags taken near
+  // the iteration limit turned a solve that converged under every lag into a failed one (a crate
+  // landing on a rubber mat: four re-lags of 11 to 32 iterations each in a limit of 100).
+  constexpr int kMovingLags = 4;
+  // Solves with re-lags; `at` gets the iteration count at each re-lag that moved the minimiser.
+  auto solve = [](int max_iterations, std::vector<int>& at) {
+    Problem p(bar_json(false), "newton_relag");
+    bend_x_tilde(p);
+    std::vector<double> x = p.model.rest_positions;
+    p.potential.begin_step(p.x_tilde, weights_context(kDt * kDt, kDt * kDt, true));
+    NewtonSettings settings;
+    settings.tolerance = 1e-5;  // [m/s]
+    settings.max_iterations = max_iterations;
+    settings.dt = kDt;
+    settings.relag_below = 1e-4;  // 10 tolerances, as in the simulation
+    settings.max_relags = 20;
+    settings.relag = [&](const double*) {
+      if (static_cast<int>(at.size()) == kMovingLags) return false;  // the lags have settled
+      at.push_back(static_cast<int>(p.history.size()));
+      bend_x_tilde(p, 0.3);
+      p.potential.begin_step(p.x_tilde, weights_context(kDt * kDt, kDt * kDt, true));
+      return true;
+    };
+    return p.solver.solve(x, settings);
+  };
+  std::vector<int> at;
+  const NewtonResult free = solve(1000, at);
+  REQUIRE(free.status == StepStatus::ok);
+  REQUIRE(at.size() == kMovingLags);
+  const int last_cost = at[3] - at[2];  // what the third moving lag took to converge again
+  MESSAGE("with no limit in sight: re-lags at iterations ", at[0], ", ", at[1], ", ", at[2], ", ", at[3],
+          "; ", free.iterations, " iterations in all");
+  REQUIRE(last_cost >= 6);  // the premise: each lag costs several iterations
+  REQUIRE(free.iterations - at[3] >= 6);  // ... the fourth too
+  // A limit that leaves less than a lag's cost after the fourth re-lag: taken there, the solve
+  // could not converge again. It is not taken, and the solve converges under the third lag.
+  const int limit = at[3] + last_cost / 2;
+  std::vector<int> at_limited;
+  const NewtonResult limited = solve(limit, at_limited);
+  CAPTURE(limit);
+  CHECK(limited.status == StepStatus::ok);
+  CHECK(at_limited == std::vector<int>(at.begin(), at.begin() + 3));
 }
 
 TEST_CASE("newton: a converged island is not factorised again while another still iterates") {
