@@ -156,7 +156,8 @@ class NewtonSolver {
   // that link islands of a group); the groups' slopes.
   bool cap_steps(const double* x, int32_t num_groups, NewtonResult& result);
   // Backtracking per group from x; the accepted point is left in trial_. With affine bodies the
-  // trial points first turn them (CoordinateMap::turn), then, if that fails, go straight.
+  // trial points first turn them (CoordinateMap::turn), then, if that fails, go straight; a
+  // group whose turned step was cut keeps the straight point where that is lower.
   bool line_search(const double* x, int32_t num_groups, NewtonResult& result);
   bool line_search_pass(const double* x, int32_t num_groups, bool turn, NewtonResult& result);
   // After the line search: the groups whose full, uncapped step decreased the energy by more than
@@ -232,6 +233,9 @@ class NewtonSolver {
   std::vector<uint8_t> turn_moves_;             // (num_vertices) turned beyond their pads
   std::vector<int32_t> turn_group_;             // (num_vertices) 0 where the turn moves, else -1
   bool turn_swept_ = false;                     // turned_point_valid searched the turn's pairs
+  // line_search: the turned point and its groups' numbers, while the straight search is tried
+  std::vector<double> turned_trial_, turned_alpha_, turned_energy_;
+  std::vector<uint8_t> straight_kept_;          // (groups) the straight point was lower
   double turn_reach_ = 0.0;                     // NewtonSettings::turn_reach of the solve
   bool extend_steps_ = true;                    // NewtonSettings::extend_steps of the solve
 };
