@@ -4,9 +4,9 @@
 // group at every iteration, the CCD cap that keeps each iterate on the right side of a plane (and
 // caps only the group, and within an island only the body, that needs it), full steps lengthened
 // where the projected model is stiffer than the energy, re-lags inside a solve that stop before
-// the iteration limit, converged islands left alone, and on failure x at the last accepted point; a linear solver that fails (a Hessian
-// that is not positive definite, CHOLMOD out of memory) gives a status, not an exception, and the
-// next solve works again. The solver's history (NewtonSolver::set_history) shows what each
+// the iteration limit, converged islands left alone, and on failure x at the last accepted
+// point; a linear solver that fails (a Hessian that is not positive definite, CHOLMOD out of
+// memory) gives a status, not an exception, and the next solve works again. The solver's history (NewtonSolver::set_history) shows what each
 // iteration did.
 #include "engine/contact/barrier_potential.hpp"
 #include "engine/potential/elastic_assembly.hpp"
