@@ -12,6 +12,7 @@
 //   nexdyn --version
 // Exit code 0 on success, 1 for a failed step or bad input, 2 for a usage error, 130 / 143 for a
 // run stopped by SIGINT / SIGTERM; otherwise one clear line on stderr.
+#include "engine/allocation.hpp"
 #include "engine/ccd_queries.hpp"
 #include "engine/mpm/mpm_simulation.hpp"
 #include "engine/plot/stats_plot.hpp"
@@ -387,6 +388,7 @@ void report_split_loops_at_exit() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  keep_freed_memory();
   report_split_loops_at_exit();
   CLI::App app{"NexDynIPC: incremental potential simulation of elastic tet bodies", "nexdyn"};
   CliArgs a;
