@@ -44,7 +44,7 @@ class CandidateSearch {
         prims_(body_primitives(m, free)),
         neighbors_(neighbor_bodies(m, prims_, x0, x1, inflation, pad)),
         own_searched_(own_searched(m, prims_)),
-        searched_(searched(prims_, neighbors_)),
+        searched_(searched(own_searched_, neighbors_)),
         boxes_(m, prims_, searched_.data(), own_searched_.data(), x0, x1, inflation, pad),
         world_(boxes_.world),
         own_(boxes_.body_frame()),
@@ -68,20 +68,20 @@ class CandidateSearch {
   void edge_edge_pairs(std::vector<IndexPair>& out) const;
 
  private:
-  // Only bodies with a free vertex and their neighbours can be in a pair: only their primitives
-  // are boxed and searched (a re-search after a few bodies moved costs what those bodies cost),
-  // and only the former's own pairs.
-  // An affine body has no own pairs (same_affine_body): its own primitives are not searched.
+  // A pair lies within one body with a free vertex, or between neighbours (one of them with a
+  // free vertex): only those bodies' primitives are boxed and searched (a re-search after a few
+  // bodies moved costs what those bodies cost).
+  // An affine body has no own pairs (same_affine_body): its own primitives are not searched, and
+  // one without neighbours (falling alone) is not searched at all.
   static std::vector<uint8_t> own_searched(const Model& m, const std::vector<BodyPrimitives>& prims) {
     std::vector<uint8_t> out(prims.size());
     for (size_t b = 0; b < prims.size(); ++b) out[b] = prims[b].any_free;
     for (const AffineBody& body : m.affine_bodies) out[body.body] = 0;
     return out;
   }
-  static std::vector<uint8_t> searched(const std::vector<BodyPrimitives>& prims, const NeighborBodies& neighbors) {
-    std::vector<uint8_t> out(prims.size());
-    for (size_t b = 0; b < prims.size(); ++b)
-      out[b] = prims[b].any_free || neighbors.ptr[b + 1] > neighbors.ptr[b];
+  static std::vector<uint8_t> searched(const std::vector<uint8_t>& own_searched, const NeighborBodies& neighbors) {
+    std::vector<uint8_t> out(own_searched.size());
+    for (size_t b = 0; b < out.size(); ++b) out[b] = own_searched[b] || neighbors.ptr[b + 1] > neighbors.ptr[b];
     return out;
   }
   // Trees over the world boxes of the neighbours too many to scan.

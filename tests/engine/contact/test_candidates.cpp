@@ -162,6 +162,8 @@ TEST_CASE("contact candidates: none within one affine body, the rest equal the b
   // Two affine boxes of 2 x 2 x 2 cells and a tet box beside them, 1 cm apart: with a 5 cm
   // inflation every body's own primitives overlap. A rigid body's own pairs never come closer,
   // so the affine boxes have none; the tet box keeps its own, and the pairs across bodies stay.
+  // An affine and a tet box far from the rest (no neighbours): the first is not searched at all,
+  // the second still has its own pairs.
   const Scene scene = test::scene_from_json(R"({
     "gravity": [0, -9.81, 0], "time": { "dt": 0.01 }, "contact": { "dhat": 0.01 },
     "materials": { "a": { "model": "affine", "density": 1000 },
@@ -169,10 +171,14 @@ TEST_CASE("contact candidates: none within one affine body, the rest equal the b
     "bodies": [ { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "a",
                   "array": { "count": [2, 1, 1], "spacing": [0.21, 0, 0] } },
                 { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "t",
-                  "translate": [0.42, 0, 0] } ]
+                  "translate": [0.42, 0, 0] },
+                { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "a",
+                  "translate": [2, 0, 0] },
+                { "box": { "size": [0.2, 0.2, 0.2], "cells": [2, 2, 2] }, "material": "t",
+                  "translate": [0, 0, 2] } ]
   })", "candidates_affine");
   const Model& model = scene.model;
-  REQUIRE(model.affine_bodies.size() == 2);
+  REQUIRE(model.affine_bodies.size() == 3);
   const std::vector<double> x0 = test::perturbed(model.rest_positions, 1e-3, 3);
   const std::vector<double> x1 = moved(model, x0, 4);
   for (const double* end : {static_cast<const double*>(nullptr), x1.data()}) {
@@ -182,19 +188,21 @@ TEST_CASE("contact candidates: none within one affine body, the rest equal the b
     find_contact_candidates(model, x0.data(), end, 0.05, fast);
     check_equal(fast, reference);
     const auto body = [&](int32_t v) { return model.vertex_body[v]; };
-    int64_t own_tet = 0, across = 0;
+    int64_t own_tet = 0, across = 0, own_lone_tet = 0;
     for (const IndexPair& p : reference.vertex_triangle) {
       const int32_t a = body(p.first), b = body(model.surface_triangles[3 * int64_t{p.second}]);
       CHECK((a != b || !model.materials[model.bodies[a].material].affine));
       own_tet += a == b;
       across += a != b;
+      own_lone_tet += a == 4 && b == 4;
     }
     for (const IndexPair& p : reference.edge_edge) {
       const int32_t a = body(model.surface_edges[2 * int64_t{p.first}]);
       const int32_t b = body(model.surface_edges[2 * int64_t{p.second}]);
       CHECK((a != b || !model.materials[model.bodies[a].material].affine));
     }
-    CHECK(own_tet > 0);
+    CHECK(own_tet > own_lone_tet);
+    CHECK(own_lone_tet > 0);
     CHECK(across > 0);
   }
 }
