@@ -14,14 +14,18 @@ the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with fric
                                                             # pile_1000_affine
     python3 scripts/make_pile.py 100 --affine --out /tmp/pile_100_affine.json
     python3 scripts/make_pile.py 100 --youngs 1e9 --out /tmp/pile_100_e1e9.json
+    python3 scripts/make_pile.py 10000 --layers 6 --affine --integrator default --steps 300 \
+        --friction-iterations 1 --out scenes/stress/pile_10000w_affine.json   # ten pile_1000s wide
 
     python3 scripts/make_pile.py 1000 --affine --block 0.003 --integrator default   # block_1000_affine
 
 `--block GAP` packs instead: 0.1 m boxes (one cell each way, 6 tets), GAP metres apart in a
 block of columns x layers x rows, unrotated, 0.05 m above the floor, so that the block lands as
-one (the hardest shape for contact counts). `--affine [KAPPA]` makes every body affine (material "stone", density 1000, orthogonality stiffness
-KAPPA Pa, or the engine's default); `--youngs` sets the rubber's Young's modulus; `--integrator`
-names the time integrator (`default`: leave the key out, the engine's default);
+one (the hardest shape for contact counts). `--affine [KAPPA]` makes every body affine (material
+"stone", density 1000, orthogonality stiffness KAPPA Pa, or the engine's default); `--youngs` sets
+the rubber's Young's modulus; `--integrator` names the time integrator (`default`: leave the key
+out, the engine's default); `--layers L` spreads the pile over as many columns as L layers need
+(a wide, shallow pile: `pile_1000` has 6 layers, 10,000 bodies by default 13);
 `--friction-iterations` sets `contact.friction_iterations` (1: friction lagged once a step, the
 IPC paper's code's own default; the engine's default is "converged").
 
@@ -54,8 +58,12 @@ def rotation(i):
     return angles
 
 
-def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integrator="implicit_euler"):
-    columns = max(2, math.ceil(1.3 * count ** (1.0 / 3.0)))
+def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integrator="implicit_euler",
+         layers=None):
+    if layers is None:
+        columns = max(2, math.ceil(1.3 * count ** (1.0 / 3.0)))
+    else:  # as many columns a side as `layers` layers need
+        columns = max(2, math.ceil(math.sqrt(count / layers)))
     half = 0.5 * columns * SPACING + 0.1
     material = "stone" if affine else "rubber"
     bodies = []
@@ -154,11 +162,15 @@ def main():
     parser.add_argument("--integrator", default="implicit_euler", help="time.integrator ('default': none)")
     parser.add_argument("--friction-iterations", metavar="K",
                         help="contact.friction_iterations (a count, or 'converged'; default: the engine's)")
+    parser.add_argument("--layers", type=int, metavar="L",
+                        help="a pile L layers high (default: about 1.3 N^(1/3) columns a side, so taller with N)")
     parser.add_argument("--block", type=float, metavar="GAP",
                         help="boxes packed GAP metres apart in one block instead of a pile")
     args = parser.parse_args()
     if not 1 <= args.count <= 100000:
         raise SystemExit(f"count: expected 1 to 100000, got {args.count}")
+    if args.layers is not None and not 1 <= args.layers <= args.count:
+        raise SystemExit(f"--layers: expected 1 to {args.count} (the count), got {args.layers}")
     if args.block is not None and not args.block > 0.0:
         raise SystemExit(f"--block: expected a gap > 0 m, got {args.block}")
     root = pathlib.Path(__file__).resolve().parent.parent
@@ -172,7 +184,7 @@ def main():
     if args.block is not None:
         scene = block(args.count, args.steps, args.block, affine, stiffness, args.youngs, args.integrator)
     else:
-        scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator)
+        scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator, args.layers)
     if args.friction_iterations is not None:
         k = args.friction_iterations
         scene["contact"]["friction_iterations"] = k if k == "converged" else int(k)
