@@ -218,6 +218,8 @@ class NewtonSolver {
   // (groups) step length, slope g.p, energies at x and at the trial point, accepted
   std::vector<double> group_alpha_, group_slope_, group_start_, group_trial_;
   std::vector<uint8_t> group_done_;
+  std::vector<int32_t> pending_group_of_vertex_;  // (num_vertices) line_search_pass: -1 once its group is done
+  std::vector<double> pending_energy_;          // (groups) line_search_pass: the evaluated groups' energies
   std::vector<double> group_cap_;               // (groups) CCD cap, before the line search's halvings
   std::vector<double> group_extension_;         // (groups) extend_step's factor on the direction
   std::vector<double> group_reach_;             // (groups) the largest factor of its vertices so far

@@ -127,10 +127,16 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
   const int64_t n = model_.num_dofs();
   group_start_.resize(num_groups);
   group_trial_.resize(num_groups);
+  pending_energy_.resize(num_groups);
   potential_.group_energy(x, group_of_vertex_.data(), num_groups, group_start_.data());
   std::fill(group_alpha_.begin(), group_alpha_.end(), 1.0);
   group_done_.assign(num_groups, 0);
   int32_t pending = num_groups;
+  // After the first trial, only the groups still searching are evaluated: the others' vertices
+  // are taken out of the groups (-1) in pending_group_of_vertex_. Every term sums a group's part
+  // in runs of consecutive items of that group, which stay the same runs, so a group's energy
+  // comes out bit for bit as when all are evaluated.
+  const int32_t* evaluated = group_of_vertex_.data();
   while (pending > 0) {
     stop_point();
     parallel_for(n, [&](int64_t begin, int64_t end) {
@@ -140,9 +146,11 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
       }
     }, 8192);
     if (turn) potential_.map().turn(x, direction_.data(), group_of_vertex_.data(), group_alpha_.data(), trial_.data());
-    potential_.group_energy(trial_.data(), group_of_vertex_.data(), num_groups, group_trial_.data());
+    potential_.group_energy(trial_.data(), evaluated, num_groups, pending_energy_.data());
+    const int32_t pending_before = pending;
     for (int32_t k = 0; k < num_groups; ++k) {
       if (group_done_[k]) continue;
+      group_trial_[k] = pending_energy_[k];
       if (sufficient_decrease(k)) {
         group_done_[k] = 1;
         --pending;
@@ -159,6 +167,13 @@ bool NewtonSolver::line_search_pass(const double* x, int32_t num_groups, bool tu
         return false;
       }
     }
+    if (pending == pending_before || pending == 0) continue;
+    pending_group_of_vertex_.resize(group_of_vertex_.size());
+    for (size_t v = 0; v < group_of_vertex_.size(); ++v) {
+      const int32_t g = group_of_vertex_[v];
+      pending_group_of_vertex_[v] = g >= 0 && !group_done_[g] ? g : -1;
+    }
+    evaluated = pending_group_of_vertex_.data();
   }
   return true;
 }
