@@ -252,21 +252,33 @@ void BarrierPotential::group_energy(const double* x, const int32_t* group_of_ver
       if (v >= 0 && group_of_vertex[v] >= 0) return group_of_vertex[v];
     return -1;
   };
-  auto over = [&](const std::vector<IndexPair>& pairs, auto&& vertices_of, auto&& eval) {
+  // The line search's trial points are near the point the active set last refreshed at: a pair
+  // whose cached distance, less the motion since, stays beyond dhat has no energy (exactly 0, so
+  // the sums keep their bits), and its distance kernel is skipped. `first`: the list's offset in
+  // the active set's numbering, `split`: the pair's first side's vertex count.
+  auto beyond_dhat = [&](int64_t i, const PairVertices& s, int split) {
+    const double bound = active_.distance_bound_at(i, s, split, x);
+    return bound > 0.0 && bound * bound > pair_geometry::kFarMargin * dhat2_;
+  };
+  auto over = [&](const std::vector<IndexPair>& pairs, int64_t first, int split, auto&& vertices_of, auto&& eval) {
     grouped_sum(static_cast<int64_t>(pairs.size()), kPairGrain,
                 [&](int64_t i) { return first_group(vertices_of(pairs[i])); },
                 [&](int64_t b, int64_t e) {
                   double sum = 0.0;
-                  for (int64_t i = b; i < e; ++i) sum += eval(model_, x, pairs[i], dhat2_).energy;
+                  for (int64_t i = b; i < e; ++i)
+                    if (split == 0 || !beyond_dhat(first + i, vertices_of(pairs[i]), split))
+                      sum += eval(model_, x, pairs[i], dhat2_).energy;
                   return sum;
                 },
                 total);
   };
   const ContactCandidates& c = candidates_;
-  over(c.vertex_triangle, [&](const IndexPair& pr) { return vertex_triangle_vertices(model_, pr); },
+  const int64_t nvt = static_cast<int64_t>(c.vertex_triangle.size());
+  over(c.vertex_triangle, 0, 1, [&](const IndexPair& pr) { return vertex_triangle_vertices(model_, pr); },
        eval_vertex_triangle<true>);
-  over(c.edge_edge, [&](const IndexPair& pr) { return edge_edge_vertices(model_, pr); }, eval_edge_edge<true>);
-  over(c.vertex_plane, vertex_plane_vertices, eval_vertex_plane);
+  over(c.edge_edge, nvt, 2, [&](const IndexPair& pr) { return edge_edge_vertices(model_, pr); },
+       eval_edge_edge<true>);
+  over(c.vertex_plane, 0, 0, vertex_plane_vertices, eval_vertex_plane);  // (split 0: no skip)
 }
 
 double BarrierPotential::min_squared_distance(const double* x) {
