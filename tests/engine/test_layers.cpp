@@ -58,8 +58,10 @@ const std::vector<Layer> kLayers = {
     {"engine/energy_balance.", 7},
     // 8: files written from a simulation: frames, checkpoints
     {"engine/output/", 8},
-    // 9: the programs around them: the run loop, pictures, charts, CCD queries, the CLI, Python
+    // 9: the programs around them: the run loop, pictures, charts, CCD queries, the CLI, Python,
+    // the allocator policy a program sets
     {"engine/run", 9},
+    {"engine/allocation.", 9},
     {"engine/ccd_queries.", 9},
     {"engine/render/", 9},
     {"engine/plot/", 9},
