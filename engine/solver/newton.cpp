@@ -193,6 +193,7 @@ int64_t NewtonSolver::solve_islands(int& analyses) {
   active_system_.resize(count);
   active_status_.assign(count, StepStatus::ok);
   for (int64_t a = 0; a < count; ++a) active_system_[a] = &island_system(active_[a]);
+  forget_vanished_islands();
   // The big islands not solved now (frozen, or from an earlier solve) give their factors back.
   for (auto& [hash, bucket] : systems_)
     for (auto& system : bucket)
@@ -267,6 +268,27 @@ void NewtonSolver::forget_unused_systems() {
     token_size_.assign(1, 0);
   }
   keep_converged_ = false;
+}
+
+void NewtonSolver::forget_vanished_islands() {
+  // Systems used in this solve whose islands no longer exist (merged or split since) are
+  // forgotten now, not at the next solve: in a landing pile the islands change at every
+  // iteration, and such systems' tables and analyses held 0.9 GB at the peak of a 10,000-body
+  // landing (heaptrack). Systems of earlier solves keep forget_unused_systems' rule (the free and
+  // the held solves of a kinematic boundary alternate and keep each other's islands).
+  auto vanished = [&](const IslandSystem& system) {
+    if (system.last_used != solve_count_ || system.last_iteration == iteration_count_) return false;
+    const std::vector<int32_t>& v = system.vertices();
+    const int32_t i = islands_.island_of(v.front());
+    if (i < 0 || islands_.island_size(i) != static_cast<int32_t>(v.size())) return true;
+    return !std::equal(v.begin(), v.end(), islands_.vertices().begin() + islands_.vertex_ptr()[i]);
+  };
+  for (auto it = systems_.begin(); it != systems_.end();) {
+    auto& bucket = it->second;
+    bucket.erase(std::remove_if(bucket.begin(), bucket.end(), [&](const auto& s) { return vanished(*s); }),
+                 bucket.end());
+    it = bucket.empty() ? systems_.erase(it) : std::next(it);
+  }
 }
 
 bool NewtonSolver::solve_direction(const double* x, int it, NewtonResult& result) {

@@ -143,6 +143,8 @@ class NewtonSolver {
   // Factorises and solves the active islands: direction_ = H^-1 grad_ on their DOFs. Returns
   // the index in active_ of the first island that failed (active_status_ says how), or -1.
   int64_t solve_islands(int& analyses);
+  // Forgets the systems of this solve whose islands are gone (solve_islands, each iteration).
+  void forget_vanished_islands();
   // The stages of solve(), in order (each false/failing fills result's status and message):
   void forget_unused_systems();
   // Assembles the active islands at x and solves them into direction_ (= H^-1 g).
