@@ -193,7 +193,8 @@ class NewtonSolver {
 
   Islands islands_;
   // Island systems by a hash of their vertex list (collisions keep a short list), evicted when
-  // unused for a whole solve.
+  // unused for some solves (forget_unused_systems) or, if used in this solve, as soon as their
+  // island is gone (forget_vanished_islands).
   std::unordered_map<uint64_t, std::vector<std::unique_ptr<IslandSystem>>> systems_;
   int64_t solve_count_ = 0;
   int64_t iteration_count_ = 0;  // Newton iterations over all solves
