@@ -166,10 +166,20 @@ double ContactActiveSet::min_squared_distance(const ContactCandidates& candidate
   return min_d;
 }
 
-double ContactActiveSet::distance_bound_at(int64_t i, const PairVertices& s, int split, const double* x) const {
-  if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
-  const double bound = std::sqrt(distance_[i]) - pair_geometry::closing_reach(s, split, positions_.data(), x);
-  return bound > 0.0 ? bound : -1.0;  // (NaN: -1)
+// Each vertex's motion once, for the bounds of all candidates: read from one number a vertex
+// instead of two positions. The largest of square roots is the root of the largest, so the
+// bounds are closing_reach's to the bit.
+void ContactActiveSet::motion_since_cache(const double* x, std::vector<double>& motion) const {
+  const int64_t nv = model_.num_vertices;
+  motion.resize(nv);
+  parallel_for(nv, [&](int64_t begin, int64_t end) {
+    for (int64_t v = begin; v < end; ++v) {
+      const double* a = &positions_[3 * v];
+      const double* b = x + 3 * v;
+      const double dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
+      motion[v] = std::sqrt(dx * dx + dy * dy + dz * dz);  // (squared as closing_reach does)
+    }
+  }, 8192);
 }
 
 // ---- stencils ---------------------------------------------------------------------------------

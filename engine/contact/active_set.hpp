@@ -32,6 +32,8 @@
 #include "engine/contact/candidates.hpp"
 #include "engine/model.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -62,9 +64,17 @@ class ContactActiveSet {
   double min_squared_distance(const ContactCandidates& candidates, const double* x);
   // A lower bound on candidate i's distance at any x: its cached distance less how far each of
   // its two sides (vertices s[0, split) and s[split, 4)) is from where it was cached at most
-  // (at the x of the last refresh: the cached distance, exact below dhat). -1 when the cache does
-  // not know the pair or the bound is not positive. [m]
-  double distance_bound_at(int64_t i, const PairVertices& s, int split, const double* x) const;
+  // (at the x of the last refresh: the cached distance, exact below dhat), from `motion`, each
+  // vertex's distance from there (motion_since_cache at that x). -1 when the cache does not know
+  // the pair or the bound is not positive. [m]
+  void motion_since_cache(const double* x, std::vector<double>& motion) const;
+  double distance_bound(int64_t i, const PairVertices& s, int split, const double* motion) const {
+    if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
+    double side[2] = {0.0, 0.0};
+    for (int k = 0; k < 4; ++k) side[k >= split] = std::max(side[k >= split], motion[s[k]]);
+    const double bound = std::sqrt(distance_[i]) - (side[0] + side[1]);
+    return bound > 0.0 ? bound : -1.0;  // (NaN: -1)
+  }
 
   // ---- stencils
   // The active set at x: candidates closer than dhat, merged into stencils (see the top).

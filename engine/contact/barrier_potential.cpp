@@ -245,7 +245,7 @@ double BarrierPotential::energy(const double* x) const {
   return reduce_pairs(model_, candidates_, x, dhat2_, 0.0, SumEnergy{}) + dropped_energy_;
 }
 
-void BarrierPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) const {
+void BarrierPotential::group_energy(const double* x, const int32_t* group_of_vertex, double* total) {
   // A pair's group: that of its first moving vertex (all its moving vertices share one).
   auto first_group = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
@@ -256,8 +256,9 @@ void BarrierPotential::group_energy(const double* x, const int32_t* group_of_ver
   // whose cached distance, less the motion since, stays beyond dhat has no energy (exactly 0, so
   // the sums keep their bits), and its distance kernel is skipped. `first`: the list's offset in
   // the active set's numbering, `split`: the pair's first side's vertex count.
+  active_.motion_since_cache(x, cache_motion_);
   auto beyond_dhat = [&](int64_t i, const PairVertices& s, int split) {
-    const double bound = active_.distance_bound_at(i, s, split, x);
+    const double bound = active_.distance_bound(i, s, split, cache_motion_.data());
     return bound > 0.0 && bound * bound > pair_geometry::kFarMargin * dhat2_;
   };
   auto over = [&](const std::vector<IndexPair>& pairs, int64_t first, int split, auto&& vertices_of, auto&& eval) {

@@ -83,7 +83,7 @@ class BarrierPotential {
   // total[g] += the barrier sum over the candidates whose moving vertices are in group g
   // (group_of_vertex[v], -1 = does not move; pairs with no moving vertex are left out). A group
   // with a touching pair gets +inf.
-  void group_energy(const double* x, const int32_t* group_of_vertex, double* total) const;
+  void group_energy(const double* x, const int32_t* group_of_vertex, double* total);
   // Smallest squared distance over the candidates (squared signed distance for planes, 0 behind
   // one); +inf without candidates. Exact below dhat^2; above it, a lower bound that is at least
   // dhat^2 (active_set.hpp), which is all the stiffness update and the contact test ask.
@@ -238,7 +238,9 @@ class BarrierPotential {
   // The conservative CCD of candidate i (index into the concatenated lists) from x to y. With
   // `cleared`, whether the answer "no impact" came from the box or the distance test alone,
   // which then holds for every motion of each vertex along a part of its own (linked_max_steps).
+  // cache_motion_ must be the active set's motion_since_cache(x).
   bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi, bool* cleared = nullptr) const;
+  std::vector<double> cache_motion_;  // (num_vertices) workspace: motion_since_cache at a CCD's or group energy's x
 };
 
 }  // namespace nexdyn

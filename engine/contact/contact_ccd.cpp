@@ -191,7 +191,7 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
   if (i < nvt) {
     const PairVertices s = vertex_triangle_vertices(model_, c.vertex_triangle[i]);
     if (box_gap_squared(x, y, s, 1) > far_gap2) return apart();
-    if (stays_apart(s, 1, x, y, tmax, active_.distance_bound_at(i, s, 1, x))) return apart();
+    if (stays_apart(s, 1, x, y, tmax, active_.distance_bound(i, s, 1, cache_motion_.data()))) return apart();
     return point_triangle_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                               point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                               min_distance, tmax, toi);
@@ -199,7 +199,7 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
   if (i < nvt + nee) {
     const PairVertices s = edge_edge_vertices(model_, c.edge_edge[i - nvt]);
     if (box_gap_squared(x, y, s, 2) > far_gap2) return apart();
-    if (stays_apart(s, 2, x, y, tmax, active_.distance_bound_at(i, s, 2, x))) return apart();
+    if (stays_apart(s, 2, x, y, tmax, active_.distance_bound(i, s, 2, cache_motion_.data()))) return apart();
     return edge_edge_ccd(point(x, s[0]), point(x, s[1]), point(x, s[2]), point(x, s[3]),
                          point(y, s[0]), point(y, s[1]), point(y, s[2]), point(y, s[3]),
                          min_distance, tmax, toi);
@@ -251,6 +251,7 @@ void BarrierPotential::earliest_impacts(const double* x, const int32_t* group_of
 
 void BarrierPotential::group_max_steps(const double* x, const int32_t* group_of_vertex, double* alpha) {
   ProfileScope scope(profile_, StepPhase::ccd);
+  active_.motion_since_cache(x, cache_motion_);
   earliest_impacts(x, group_of_vertex, alpha, false);  // (every pair in one group: the caller's promise)
 }
 
@@ -261,6 +262,7 @@ void BarrierPotential::linked_max_steps(const double* x, const int32_t* group_of
   const ContactCandidates& c = candidates_;
   // 1. Each group's own pairs (their moving vertices all in it); the pairs that link groups are
   // set aside.
+  active_.motion_since_cache(x, cache_motion_);
   earliest_impacts(x, group_of_vertex, alpha, true);
   if (links_.empty()) return;
   const int64_t num_links = static_cast<int64_t>(links_.size());

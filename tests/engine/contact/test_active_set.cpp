@@ -13,6 +13,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -123,6 +124,7 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
   const int64_t nvt = static_cast<int64_t>(list.vertex_triangle.size());
   const int64_t nee = static_cast<int64_t>(list.edge_edge.size());
   auto p = [&](int32_t v) { return Eigen::Vector3d::Map(&x[3 * int64_t{v}]); };
+  std::vector<double> motion, x_cached = x, cached_distance(nvt + nee, -1.0);  // (the cache's, at x_cached)
   for (int move = 0; move <= 12; ++move) {
     CAPTURE(move);
     if (move > 0)
@@ -131,13 +133,17 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
         x[3 * v + 1] += -8e-4 + jitter(rng);
         x[3 * v + 2] += jitter(rng);
       }
-    // Before the refresh: the bounds from the cached distances, less the motion since, hold at x.
+    // Before the refresh: the bounds from the cached distances, less the motion since, hold at x,
+    // and are the cached distance less the pair's closing reach from the cached point, to the bit.
     int64_t bounded = 0;
+    cached.motion_since_cache(x.data(), motion);
     for (int64_t i = 0; i < nvt + nee; ++i) {
       const PairVertices s = pair_geometry::candidate_vertices(model, list, i);
-      const double bound = cached.distance_bound_at(i, s, i < nvt ? 1 : 2, x.data());
+      const int split = i < nvt ? 1 : 2;
+      const double bound = cached.distance_bound(i, s, split, motion.data());
       if (bound < 0.0) continue;
       ++bounded;
+      CHECK(bound == cached_distance[i] - pair_geometry::closing_reach(s, split, x_cached.data(), x.data()));
       const double exact = i < nvt ? point_triangle_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]))
                                    : edge_edge_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]));
       CHECK(bound * bound <= exact * (1.0 + 1e-12));
@@ -149,11 +155,15 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
     fresh.build(list, x.data());
     check_same(cached, fresh);
     int64_t beyond = 0;
+    x_cached = x;
+    cached.motion_since_cache(x.data(), motion);
+    CHECK(std::all_of(motion.begin(), motion.end(), [](double m) { return m == 0.0; }));
     for (int64_t i = 0; i < nvt + nee; ++i) {
       const PairVertices s = pair_geometry::candidate_vertices(model, list, i);
       const double exact = i < nvt ? point_triangle_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]))
                                    : edge_edge_distance(p(s[0]), p(s[1]), p(s[2]), p(s[3]));
-      const double bound = cached.distance_bound_at(i, s, i < nvt ? 1 : 2, x.data());  // (the cached one)
+      const double bound = cached.distance_bound(i, s, i < nvt ? 1 : 2, motion.data());  // (the cached one)
+      cached_distance[i] = bound;
       const double d = bound * bound;
       if (exact < dhat * dhat) {
         CHECK(d == doctest::Approx(exact).epsilon(1e-12));
