@@ -4,9 +4,10 @@
 Shapes, in turn: a `box` body (0.1 m, 2 x 2 x 2 cells, 48 tets), the IPC torus (0.12 m, 491
 tets), the IPC cube (0.08 m, 6 tets) and the IPC pyramid (0.06 x 0.12 x 0.06 m, 3 tets), about
 137 tets per body on average. They start on a square grid of columns, layer above layer,
-0.16 m apart, each turned by a pseudo-random rotation (the same on every run for the same N), and
-fall under gravity into a container whose floor is at y = 0 and whose walls leave 0.1 m around
-the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with friction 0.3.
+0.16 m apart, each turned by a pseudo-random rotation (the same on every run for the same N;
+drawn again where it could bring the body within 2 mm of a neighbour, as two boxes turned corner
+to corner would be: see apart()), and fall under gravity into a container whose floor is at
+y = 0 and whose walls leave 0.1 m around the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with friction 0.3.
 
     python3 scripts/make_pile.py 1000                       # scenes/stress/pile_1000.json
     python3 scripts/make_pile.py 10000 --steps 20 --out /tmp/pile_10000.json
@@ -39,6 +40,10 @@ import os
 import pathlib
 
 SPACING = 0.16  # [m] between body centres, every direction
+# [m] the least gap between neighbouring bodies' turned shapes at the start (IPC needs one; two
+# boxes of 0.1 m have corners 0.087 m from their centres, so two turned corner to corner would
+# overlap at this spacing: such a body takes another rotation, see apart()).
+MARGIN = 2e-3
 
 SHAPES = [
     {"box": {"size": [0.1, 0.1, 0.1], "cells": [2, 2, 2]}},
@@ -58,21 +63,93 @@ def rotation(i):
     return angles
 
 
+def mesh_nodes(path):
+    """The node coordinates of a Gmsh 4.1 ASCII mesh."""
+    lines = pathlib.Path(path).read_text().split("\n")
+    at = lines.index("$Nodes") + 1
+    blocks = int(lines[at].split()[0])
+    at += 1
+    nodes = []
+    for _ in range(blocks):
+        count = int(lines[at].split()[3])
+        at += 1 + count  # the block's header, then its node tags
+        nodes += [[float(c) for c in line.split()[:3]] for line in lines[at:at + count]]
+        at += count
+    return nodes
+
+
+def shape_points(meshes):
+    """Each shape's vertices about the point it turns about (the body's centre on the grid)."""
+    points = []
+    for shape in SHAPES:
+        if "box" in shape:
+            h = [0.5 * e for e in shape["box"]["size"]]
+            points.append([[sx * h[0], sy * h[1], sz * h[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        else:
+            centre = shape.get("centre", [0.0, 0.0, 0.0])
+            points.append([[(c - o) * shape["scale"] for c, o in zip(node, centre)]
+                           for node in mesh_nodes(meshes / shape["mesh"])])
+    return points
+
+
+# Directions to look for a plane between two neighbours along (apart()): the grid axis first,
+# then 256 spread over the sphere.
+GOLDEN = math.pi * (3.0 - math.sqrt(5.0))
+DIRECTIONS = [[math.sqrt(1 - (1 - (k + 0.5) / 128) ** 2) * math.cos(GOLDEN * k), 1 - (k + 0.5) / 128,
+               math.sqrt(1 - (1 - (k + 0.5) / 128) ** 2) * math.sin(GOLDEN * k)] for k in range(256)]
+
+
+def apart(points_a, angles_a, points_b, angles_b, axis):
+    """Whether two shapes turned by their angles, centred SPACING apart along grid axis `axis` (b
+    after a), are MARGIN apart at least: some plane between them leaves that gap (each shape's
+    reach towards the other along the plane's normal n, against the centres' SPACING n[axis]).
+    A plane between two shapes' convex hulls lies between the shapes too, so this holds for the
+    torus as well; it is sufficient, not necessary (only the directions tried count)."""
+    a = [rotate(p, angles_a) for p in points_a]
+    b = [rotate(p, angles_b) for p in points_b]
+    unit = [1.0 if k == axis else 0.0 for k in range(3)]
+    for n in [unit] + DIRECTIONS:
+        if n[axis] <= 0.0:
+            continue
+        reach_a = max(sum(p[k] * n[k] for k in range(3)) for p in a)
+        reach_b = max(-sum(p[k] * n[k] for k in range(3)) for p in b)
+        if SPACING * n[axis] - reach_a - reach_b >= MARGIN:
+            return True
+    return False
+
+
 def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integrator="implicit_euler",
-         layers=None):
+         layers=None, points=None):
     if layers is None:
         columns = max(2, math.ceil(1.3 * count ** (1.0 / 3.0)))
     else:  # as many columns a side as `layers` layers need
         columns = max(2, math.ceil(math.sqrt(count / layers)))
     half = 0.5 * columns * SPACING + 0.1
     material = "stone" if affine else "rubber"
+    radius = [max(math.sqrt(sum(c * c for c in p)) for p in shape) for shape in points] if points else None
+    angles = []
     bodies = []
     for i in range(count):
         layer, cell = divmod(i, columns * columns)
         row, col = divmod(cell, columns)
         centre = [(col + 0.5) * SPACING - 0.5 * columns * SPACING, 0.1 + layer * SPACING,
                   (row + 0.5) * SPACING - 0.5 * columns * SPACING]
-        shape = dict(SHAPES[i % len(SHAPES)])
+        kind = i % len(SHAPES)
+        shape = dict(SHAPES[kind])
+        # The neighbours before it on the grid (x, then z, then y), each SPACING away along an
+        # axis; a rotation that could bring it within MARGIN of one is drawn again.
+        neighbours = [(j, axis) for j, axis, on in ((i - 1, 0, col > 0), (i - columns, 2, row > 0),
+                                                    (i - columns * columns, 1, layer > 0)) if on]
+        turn = rotation(i)
+        for draw in range(1, 1000):
+            if not points or all(radius[kind] + radius[j % len(SHAPES)] <= SPACING - MARGIN or
+                                 apart(points[j % len(SHAPES)], angles[j], points[kind], turn, axis)
+                                 for j, axis in neighbours):
+                break
+            turn = rotation(i + draw * 1000003)
+        else:
+            raise SystemExit(f"body {i}: no rotation keeps it {MARGIN} m from its neighbours")
+        angles.append(turn)
         body = {}
         if "box" in shape:
             body["box"] = shape["box"]
@@ -83,9 +160,9 @@ def pile(count, steps, mesh_dir, affine=False, stiffness=None, youngs=1e6, integ
             body["mesh"] = mesh_dir + shape["mesh"]
             body["scale"] = shape["scale"]
             offset = [-c * shape["scale"] for c in shape.get("centre", [0.0, 0.0, 0.0])]
-            translate = [c + o for c, o in zip(centre, rotate(offset, rotation(i)))]
+            translate = [c + o for c, o in zip(centre, rotate(offset, turn))]
         body["material"] = material
-        body["rotate_deg"] = rotation(i)
+        body["rotate_deg"] = turn
         body["translate"] = [round(t, 9) for t in translate]
         bodies.append(body)
     time = {"dt": 0.01, "steps": steps}
@@ -184,7 +261,8 @@ def main():
     if args.block is not None:
         scene = block(args.count, args.steps, args.block, affine, stiffness, args.youngs, args.integrator)
     else:
-        scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator, args.layers)
+        scene = pile(args.count, args.steps, mesh_dir, affine, stiffness, args.youngs, args.integrator, args.layers,
+                     shape_points(root / "scenes" / "meshes"))
     if args.friction_iterations is not None:
         k = args.friction_iterations
         scene["contact"]["friction_iterations"] = k if k == "converged" else int(k)
