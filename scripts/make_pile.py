@@ -7,7 +7,8 @@ tets), the IPC cube (0.08 m, 6 tets) and the IPC pyramid (0.06 x 0.12 x 0.06 m, 
 0.16 m apart, each turned by a pseudo-random rotation (the same on every run for the same N;
 drawn again where it could bring the body within 2 mm of a neighbour, as two boxes turned corner
 to corner would be: see apart()), and fall under gravity into a container whose floor is at
-y = 0 and whose walls leave 0.1 m around the grid. Neo-Hookean rubber (E 1e6), implicit Euler, dt 0.01, contact with friction 0.3.
+y = 0 and whose walls leave 0.1 m around the grid. Neo-Hookean rubber (E 1e6), implicit Euler,
+dt 0.01, contact with friction 0.3.
 
     python3 scripts/make_pile.py 1000                       # scenes/stress/pile_1000.json
     python3 scripts/make_pile.py 10000 --steps 20 --out /tmp/pile_10000.json
@@ -84,7 +85,8 @@ def shape_points(meshes):
     for shape in SHAPES:
         if "box" in shape:
             h = [0.5 * e for e in shape["box"]["size"]]
-            points.append([[sx * h[0], sy * h[1], sz * h[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            signs = (-1, 1)
+            points.append([[sx * h[0], sy * h[1], sz * h[2]] for sx in signs for sy in signs for sz in signs])
         else:
             centre = shape.get("centre", [0.0, 0.0, 0.0])
             points.append([[(c - o) * shape["scale"] for c, o in zip(node, centre)]
@@ -92,11 +94,19 @@ def shape_points(meshes):
     return points
 
 
-# Directions to look for a plane between two neighbours along (apart()): the grid axis first,
-# then 256 spread over the sphere.
-GOLDEN = math.pi * (3.0 - math.sqrt(5.0))
-DIRECTIONS = [[math.sqrt(1 - (1 - (k + 0.5) / 128) ** 2) * math.cos(GOLDEN * k), 1 - (k + 0.5) / 128,
-               math.sqrt(1 - (1 - (k + 0.5) / 128) ** 2) * math.sin(GOLDEN * k)] for k in range(256)]
+def sphere_directions(count):
+    """`count` unit vectors spread evenly over the sphere (a Fibonacci spiral from +y to -y)."""
+    golden = math.pi * (3.0 - math.sqrt(5.0))
+    directions = []
+    for k in range(count):
+        y = 1.0 - 2.0 * (k + 0.5) / count
+        r = math.sqrt(1.0 - y * y)
+        directions.append([r * math.cos(golden * k), y, r * math.sin(golden * k)])
+    return directions
+
+
+# The normals apart() looks for a plane between two neighbours along, after the grid axis.
+DIRECTIONS = sphere_directions(256)
 
 
 def apart(points_a, angles_a, points_b, angles_b, axis):
