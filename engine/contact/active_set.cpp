@@ -69,19 +69,23 @@ void ContactActiveSet::carry_pairs(int64_t old_size, const std::vector<int64_t>&
   if (static_cast<int64_t>(known_.size()) != old_size) known_.assign(old_size, 0);
   distance_.resize(old_size);
   code_.resize(old_size);
+  side_bodies_.resize(old_size);
   const size_t num = origin.size();
   carried_known_.resize(num);
   carried_code_.resize(num);
   carried_distance_.resize(num);
+  carried_side_bodies_.resize(num);
   for (size_t i = 0; i < num; ++i) {
     const int64_t k = origin[i];
     carried_known_[i] = k < 0 ? 0 : known_[k];
     carried_code_[i] = k < 0 ? 0 : code_[k];
     carried_distance_[i] = k < 0 ? kInf : distance_[k];
+    carried_side_bodies_[i] = k < 0 ? SideBodies{} : side_bodies_[k];
   }
   known_.swap(carried_known_);
   code_.swap(carried_code_);
   distance_.swap(carried_distance_);
+  side_bodies_.swap(carried_side_bodies_);
 }
 
 void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
@@ -91,6 +95,7 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
   if (static_cast<int64_t>(known_.size()) != num) forget_pairs(c);
   distance_.resize(num);
   code_.resize(num);
+  side_bodies_.resize(num);
 
   // How far each vertex moved from its cached position (0: not at all; NaN when either is NaN),
   // the cache brought up to date.
@@ -155,6 +160,8 @@ void ContactActiveSet::refresh(const ContactCandidates& c, const double* x) {
       distance_[i] = d;
       code_[i] = code;
       known_[i] = 1;
+      const std::vector<int32_t>& body = model_.vertex_body;
+      side_bodies_[i] = {body[s[0]], primitives ? body[s[i < nvt ? 1 : 2]] : -1};
     }
   }, 1);
 }
@@ -180,6 +187,16 @@ void ContactActiveSet::motion_since_cache(const double* x, std::vector<double>& 
       motion[v] = std::sqrt(dx * dx + dy * dy + dz * dz);  // (squared as closing_reach does)
     }
   }, 8192);
+}
+
+void ContactActiveSet::body_motion_since_cache(const std::vector<double>& motion,
+                                               std::vector<double>& body_motion) const {
+  body_motion.assign(model_.bodies.size(), 0.0);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (!model_.follows.empty() && model_.follows[v] < Model::kOwnNode) continue;  // (p or a column of A)
+    double& m = body_motion[model_.vertex_body[v]];
+    m = std::isnan(motion[v]) ? kInf : std::max(m, motion[v]);
+  }
 }
 
 // ---- stencils ---------------------------------------------------------------------------------

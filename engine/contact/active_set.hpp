@@ -68,6 +68,25 @@ class ContactActiveSet {
   // vertex's distance from there (motion_since_cache at that x). -1 when the cache does not know
   // the pair or the bound is not positive. [m]
   void motion_since_cache(const double* x, std::vector<double>& motion) const;
+  // The bodies of candidate i's two sides (a vertex-plane pair: its vertex's body, then -1),
+  // where known_ is set.
+  struct SideBodies {
+    int32_t first = -1, second = -1;
+  };
+  // Per body, the largest motion_since_cache of the vertices pairs are made of (an affine body's
+  // nodes left out: they are no points of its surface), from `motion` (NaN: +inf).
+  void body_motion_since_cache(const std::vector<double>& motion, std::vector<double>& body_motion) const;
+  // distance_bound from each side's body's largest motion instead of the pair's own vertices':
+  // never above it, bit for bit (the sums and differences of larger numbers), and read without
+  // the pair's vertices. -1 for an unknown pair, a vertex-plane pair or a bound not positive.
+  double body_distance_bound(int64_t i, const double* body_motion) const {
+    if (i >= static_cast<int64_t>(known_.size()) || !known_[i] || side_bodies_[i].second < 0) return -1.0;
+    const SideBodies& b = side_bodies_[i];
+    const double bound = std::sqrt(distance_[i]) - (body_motion[b.first] + body_motion[b.second]);
+    return bound > 0.0 ? bound : -1.0;  // (NaN: -1)
+  }
+  // Valid where body_distance_bound is positive.
+  const SideBodies& side_bodies(int64_t i) const { return side_bodies_[i]; }
   double distance_bound(int64_t i, const PairVertices& s, int split, const double* motion) const {
     if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;
     double side[2] = {0.0, 0.0};
@@ -114,8 +133,10 @@ class ContactActiveSet {
   std::vector<uint8_t> known_;            // (candidates)
   std::vector<double> distance_;          // (candidates) [m^2]
   std::vector<uint8_t> code_;             // (candidates)
+  std::vector<SideBodies> side_bodies_;   // (candidates)
   std::vector<uint8_t> carried_known_, carried_code_;  // workspaces of carry_pairs()
   std::vector<double> carried_distance_;
+  std::vector<SideBodies> carried_side_bodies_;
 
   // Workspace of build(), kept to avoid allocation per iteration.
   std::vector<int64_t> chunk_unique_begin_;     // (chunks + 1) unique stencils before each chunk

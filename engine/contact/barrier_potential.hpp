@@ -241,6 +241,12 @@ class BarrierPotential {
   // cache_motion_ must be the active set's motion_since_cache(x).
   bool pair_ccd(int64_t i, const double* x, const double* y, double tmax, double& toi, bool* cleared = nullptr) const;
   std::vector<double> cache_motion_;  // (num_vertices) workspace: motion_since_cache at a CCD's or group energy's x
+  // Per body, the largest motion since the cache (ContactActiveSet::body_motion_since_cache) and
+  // the largest motion from x to x1_ of the vertices pairs are made of: set by earliest_impacts.
+  std::vector<double> body_cache_motion_, body_reach_;  // (bodies) [m]
+  // Whether candidate i certainly stays apart on the whole motion x -> x1_, from its bodies'
+  // largest motions alone (earliest_impacts' first test, before the pair's vertices are read).
+  bool bodies_stay_apart(int64_t i) const;
 };
 
 }  // namespace nexdyn

@@ -210,10 +210,35 @@ bool BarrierPotential::pair_ccd(int64_t i, const double* x, const double* y, dou
                          toi);
 }
 
+bool BarrierPotential::bodies_stay_apart(int64_t i) const {
+  // Each side of the pair moves no more than its body's largest motion, and was no more than its
+  // body's largest motion since the cache from where the cache saw it: both bounds are the
+  // pair's own (closing_reach, distance_bound) or larger, bit for bit, so a pair they clear for
+  // the whole motion (tmax 1) pair_ccd clears too, for any tmax.
+  const double bound = active_.body_distance_bound(i, body_cache_motion_.data());
+  if (!(bound > 0.0)) return false;
+  const ContactActiveSet::SideBodies& b = active_.side_bodies(i);
+  return body_reach_[b.first] + body_reach_[b.second] <= 0.8 * bound;
+}
+
 void BarrierPotential::earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha,
                                         bool set_links_aside) {
   const double* y = x1_.data();
   const ContactCandidates& c = candidates_;
+  // Per body, the bounds of bodies_stay_apart: the largest motion since the cache, and the
+  // largest of x -> y (squared, then the root, as closing_reach takes it) of its point vertices.
+  active_.body_motion_since_cache(cache_motion_, body_cache_motion_);
+  body_reach_.assign(model_.bodies.size(), 0.0);
+  for (int32_t v = 0; v < model_.num_vertices; ++v) {
+    if (!model_.follows.empty() && model_.follows[v] < Model::kOwnNode) continue;  // (p or a column of A)
+    const double* a = x + 3 * int64_t{v};
+    const double* b = y + 3 * int64_t{v};
+    const double dx = b[0] - a[0], dy = b[1] - a[1], dz = b[2] - a[2];
+    const double step2 = dx * dx + dy * dy + dz * dz;
+    double& r = body_reach_[model_.vertex_body[v]];
+    r = std::isnan(step2) ? std::numeric_limits<double>::infinity() : std::max(r, step2);
+  }
+  for (double& r : body_reach_) r = std::sqrt(r);
   // Earliest time of impact per group, per fixed chunk of pairs. Within a chunk, a run of pairs
   // of one group passes its running minimum as tmax to cut work short. Each run leaves one
   // (group, time) result, and the results are combined in chunk order: the same on any thread
@@ -230,6 +255,7 @@ void BarrierPotential::earliest_impacts(const double* x, const int32_t* group_of
       runs.clear();
       link_chunks_[k].clear();
       for (int64_t i = k * kPairGrain; i < std::min(count, (k + 1) * kPairGrain); ++i) {
+        if (bodies_stay_apart(i)) continue;  // (no impact: in no run and no link)
         const std::array<int32_t, 4> groups = groups_of(candidate_vertices(model_, c, i), group_of_vertex);
         if (groups[0] < 0) continue;
         if (set_links_aside && groups[1] >= 0) {

@@ -135,12 +135,28 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
       }
     // Before the refresh: the bounds from the cached distances, less the motion since, hold at x,
     // and are the cached distance less the pair's closing reach from the cached point, to the bit.
-    int64_t bounded = 0;
+    // The bodies' bounds are the cached distance less each side's body's largest motion: never
+    // above the pair's own bound, equal where the pair's sides hold their bodies' largest motions.
+    int64_t bounded = 0, body_bounded = 0;
     cached.motion_since_cache(x.data(), motion);
+    std::vector<double> body_motion, largest(model.bodies.size(), 0.0);
+    cached.body_motion_since_cache(motion, body_motion);
+    for (int32_t v = 0; v < model.num_vertices; ++v)
+      largest[model.vertex_body[v]] = std::max(largest[model.vertex_body[v]], motion[v]);
+    CHECK(body_motion == largest);
     for (int64_t i = 0; i < nvt + nee; ++i) {
       const PairVertices s = pair_geometry::candidate_vertices(model, list, i);
       const int split = i < nvt ? 1 : 2;
       const double bound = cached.distance_bound(i, s, split, motion.data());
+      const double body_bound = cached.body_distance_bound(i, body_motion.data());
+      if (body_bound > 0.0) {
+        ++body_bounded;
+        const int32_t a = model.vertex_body[s[0]], b = model.vertex_body[s[split]];
+        CHECK(cached.side_bodies(i).first == a);
+        CHECK(cached.side_bodies(i).second == b);
+        CHECK(body_bound == cached_distance[i] - (largest[a] + largest[b]));
+        CHECK(body_bound <= bound);
+      }
       if (bound < 0.0) continue;
       ++bounded;
       CHECK(bound == cached_distance[i] - pair_geometry::closing_reach(s, split, x_cached.data(), x.data()));
@@ -149,6 +165,7 @@ TEST_CASE("active set: pairs brought within dhat by many small moves are found, 
       CHECK(bound * bound <= exact * (1.0 + 1e-12));
     }
     if (move > 0) CHECK(bounded > 0);
+    if (move > 0) CHECK(body_bounded > 0);
     cached.build(list, x.data());
     ContactActiveSet fresh(model, dhat * dhat);
     fresh.forget_pairs(list);
