@@ -191,12 +191,18 @@ void ContactActiveSet::motion_since_cache(const double* x, std::vector<double>& 
 
 void ContactActiveSet::body_motion_since_cache(const std::vector<double>& motion,
                                                std::vector<double>& body_motion) const {
-  body_motion.assign(model_.bodies.size(), 0.0);
-  for (int32_t v = 0; v < model_.num_vertices; ++v) {
-    if (!model_.follows.empty() && model_.follows[v] < Model::kOwnNode) continue;  // (p or a column of A)
-    double& m = body_motion[model_.vertex_body[v]];
-    m = std::isnan(motion[v]) ? kInf : std::max(m, motion[v]);
-  }
+  body_motion.resize(model_.bodies.size());
+  parallel_for(static_cast<int64_t>(model_.bodies.size()), [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const BodyRange& body = model_.bodies[k];
+      double largest = 0.0;
+      for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+        if (!model_.follows.empty() && model_.follows[v] < Model::kOwnNode) continue;  // (p or a column of A)
+        largest = std::isnan(motion[v]) ? kInf : std::max(largest, motion[v]);
+      }
+      body_motion[k] = largest;
+    }
+  }, 16);
 }
 
 // ---- stencils ---------------------------------------------------------------------------------

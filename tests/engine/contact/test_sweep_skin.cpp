@@ -180,3 +180,85 @@ TEST_CASE("sweep skin: the CCD answered from the active set's distances caps as 
   CHECK(capped >= 10);  // the motions run into the cube and graze it, as well as stay clear
   CHECK(clear >= 5);
 }
+
+namespace {
+
+// Five pairs of affine cubes side by side along x, 1.2 dhat apart, the pairs 0.5 m apart along z:
+// bodies 2k (left) and 2k + 1 (right).
+Scene five_pairs() {
+  std::string bodies;
+  for (int k = 0; k < 5; ++k)
+    for (double x : {0.0, kSize + 1.2 * kDhat})
+      bodies += std::string(bodies.empty() ? "" : ",") +
+                R"({ "box": { "size": [0.1, 0.1, 0.1], "cells": [2, 2, 2] }, "material": "a", "translate": [)" +
+                std::to_string(x) + ", 0, " + std::to_string(0.5 * k) + "] }";
+  return test::scene_from_json(R"({ "time": { "dt": 0.01 },
+    "materials": { "a": { "model": "affine", "density": 1000 } }, "bodies": [)" + bodies + "] }", "sweep_skin");
+}
+
+// Cube b moves by dx[b] dhat along x; the left cubes and cube 9 are flagged moving.
+Motion cubes_by(const Model& model, const std::vector<double>& dx) {
+  Motion m;
+  m.p.assign(model.num_dofs(), 0.0);
+  m.moving.assign(model.num_vertices, 0);
+  for (int32_t v = 0; v < model.num_vertices; ++v) {
+    const int32_t body = model.vertex_body[v];
+    if (body % 2 != 0 && body != 9) continue;
+    m.moving[v] = 1;
+    if (model.follows_body(v)) m.p[3 * v] = dx[body] * kDhat;
+  }
+  return m;
+}
+
+// Whether the list holds a vertex-triangle pair between bodies a and b.
+bool pairs_between(const Model& model, const ContactCandidates& list, int32_t a, int32_t b) {
+  return std::any_of(list.vertex_triangle.begin(), list.vertex_triangle.end(), [&](const IndexPair& pair) {
+    const PairVertices s = vertex_triangle_vertices(model, pair);
+    const int32_t first = model.vertex_body[s[0]], second = model.vertex_body[s[1]];
+    return (first == a && second == b) || (first == b && second == a);
+  });
+}
+
+}  // namespace
+
+TEST_CASE("sweep skin: where few bodies leave their skins, only their pairs are searched again") {
+  // Six moving cubes. A first sweep moves cube 0 0.3 dhat towards its partner, cube 2 1 dhat
+  // away from its own (2.2 dhat apart at the end: its pairs found only at the start of its
+  // segment) and cube 9 2 dhat away from cube 8; the others stand. A second sweep moves cube 0
+  // 0.2 dhat more (inside its skin) and cube 8 0.8 dhat towards cube 9 (beyond its skin): one of
+  // six leaves, so only its pairs are searched again, against the others' skins, and cube 2's
+  // pairs stay in the list (a search of cube 2 where it stands would drop them). The list must
+  // hold every pair the motion brings within dhat and cap it as a fresh search does. A third
+  // sweep brings cube 9 back 1.9 dhat, inside its skin (0.5 dhat from cube 8): no search, so the
+  // second must have paired cube 8 with all of cube 9's skin. With cube 6 leaving too (two of
+  // six), the second sweep searches every moving cube again.
+  const Scene scene = five_pairs();
+  const Model& model = scene.model;
+  for (bool two_leave : {false, true}) {
+    CAPTURE(two_leave);
+    BarrierPotential contact(model, kDhat);
+    std::vector<double> x = model.rest_positions;
+    contact.find_candidates(x.data(), nullptr);
+    const Motion first = cubes_by(model, {0.3, 0, -1.0, 0, 0, 0, 0, 0, 0, 2.0});
+    contact.sweep(x.data(), first.p.data(), first.moving.data());
+    REQUIRE(pairs_between(model, contact.candidates(), 2, 3));
+    x = moved(x, first);
+    const Motion second = cubes_by(model, {0.2, 0, 0, 0, 0, 0, two_leave ? 1.0 : 0.0, 0, 0.8, 0});
+    contact.sweep(x.data(), second.p.data(), second.moving.data());
+    CHECK(pairs_between(model, contact.candidates(), 2, 3) == !two_leave);
+    const ContactCandidates needed = pairs_near(model, x, second);
+    REQUIRE(pairs_between(model, needed, 0, 1));
+    CHECK(holds_all(contact.candidates(), needed));
+    BarrierPotential fresh(model, kDhat);
+    fresh.sweep(x.data(), second.p.data());
+    CHECK(cap_over(contact, x, second) == cap_over(fresh, x, second));
+    x = moved(x, second);
+    const Motion third = cubes_by(model, {0, 0, 0, 0, 0, 0, 0, 0, 0, -1.9});
+    const ContactCandidates after_second = contact.candidates();
+    contact.sweep(x.data(), third.p.data(), third.moving.data());
+    if (!two_leave) CHECK(same(contact.candidates(), after_second));  // (covered: no search)
+    const ContactCandidates near_third = pairs_near(model, x, third);
+    REQUIRE(pairs_between(model, near_third, 8, 9));
+    CHECK(holds_all(contact.candidates(), near_third));
+  }
+}
