@@ -80,12 +80,15 @@ class ContactActiveSet {
   // never above it, bit for bit (the sums and differences of larger numbers), and read without
   // the pair's vertices. -1 for an unknown pair, a vertex-plane pair or a bound not positive.
   double body_distance_bound(int64_t i, const double* body_motion) const {
-    if (i >= static_cast<int64_t>(known_.size()) || !known_[i] || side_bodies_[i].second < 0) return -1.0;
+    if (!knows_side_bodies(i)) return -1.0;
     const SideBodies& b = side_bodies_[i];
     const double bound = std::sqrt(distance_[i]) - (body_motion[b.first] + body_motion[b.second]);
     return bound > 0.0 ? bound : -1.0;  // (NaN: -1)
   }
-  // Valid where body_distance_bound is positive.
+  // Whether side_bodies(i) is known (a vertex-triangle or edge-edge pair the cache knows).
+  bool knows_side_bodies(int64_t i) const {
+    return i < static_cast<int64_t>(known_.size()) && known_[i] && side_bodies_[i].second >= 0;
+  }
   const SideBodies& side_bodies(int64_t i) const { return side_bodies_[i]; }
   double distance_bound(int64_t i, const PairVertices& s, int split, const double* motion) const {
     if (i >= static_cast<int64_t>(known_.size()) || !known_[i]) return -1.0;

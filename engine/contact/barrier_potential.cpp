@@ -261,13 +261,48 @@ void BarrierPotential::group_energy(const double* x, const int32_t* group_of_ver
     const double bound = active_.distance_bound(i, s, split, cache_motion_.data());
     return bound > 0.0 && bound * bound > pair_geometry::kFarMargin * dhat2_;
   };
+  // The same two questions from the pair's bodies first, without reading its vertices: the
+  // bodies' largest motions bound the pair's own (ContactActiveSet::body_distance_bound), and a
+  // body whose point vertices share one group gives the pair's first moving vertex's group.
+  active_.body_motion_since_cache(cache_motion_, body_cache_motion_);
+  body_group_.resize(model_.bodies.size());
+  parallel_for(static_cast<int64_t>(model_.bodies.size()), [&](int64_t begin, int64_t end) {
+    for (int64_t k = begin; k < end; ++k) {
+      const BodyRange& body = model_.bodies[k];
+      int32_t group = kMixedGroups;
+      for (int32_t v = body.vertex_begin; v < body.vertex_begin + body.vertex_count; ++v) {
+        if (!model_.follows.empty() && model_.follows[v] < Model::kOwnNode) continue;  // (p or a column of A)
+        if (group == kMixedGroups) group = group_of_vertex[v];
+        if (group_of_vertex[v] != group) {
+          group = kMixedGroups;
+          break;
+        }
+      }
+      body_group_[k] = group;
+    }
+  }, 16);
+  auto pair_group = [&](int64_t i, auto&& vertices) {
+    if (active_.knows_side_bodies(i)) {
+      const ContactActiveSet::SideBodies& b = active_.side_bodies(i);
+      const int32_t ga = body_group_[b.first], gb = body_group_[b.second];
+      if (ga != kMixedGroups && gb != kMixedGroups) return ga >= 0 ? ga : gb < 0 ? -1 : gb;
+    }
+    return first_group(vertices());
+  };
+  auto body_beyond_dhat = [&](int64_t i) {
+    const double bound = active_.body_distance_bound(i, body_cache_motion_.data());
+    return bound > 0.0 && bound * bound > pair_geometry::kFarMargin * dhat2_;
+  };
   auto over = [&](const std::vector<IndexPair>& pairs, int64_t first, int split, auto&& vertices_of, auto&& eval) {
     grouped_sum(static_cast<int64_t>(pairs.size()), kPairGrain,
-                [&](int64_t i) { return first_group(vertices_of(pairs[i])); },
+                [&](int64_t i) {
+                  if (split == 0) return first_group(vertices_of(pairs[i]));
+                  return pair_group(first + i, [&] { return vertices_of(pairs[i]); });
+                },
                 [&](int64_t b, int64_t e) {
                   double sum = 0.0;
                   for (int64_t i = b; i < e; ++i)
-                    if (split == 0 || !beyond_dhat(first + i, vertices_of(pairs[i]), split))
+                    if (split == 0 || (!body_beyond_dhat(first + i) && !beyond_dhat(first + i, vertices_of(pairs[i]), split)))
                       sum += eval(model_, x, pairs[i], dhat2_).energy;
                   return sum;
                 },

@@ -251,6 +251,9 @@ class BarrierPotential {
   // Per body, the largest motion since the cache (ContactActiveSet::body_motion_since_cache) and
   // the largest motion from x to x1_ of the vertices pairs are made of: set by earliest_impacts.
   std::vector<double> body_cache_motion_, body_reach_;  // (bodies) [m]
+  // group_energy(): per body, the group its point vertices share, or kMixedGroups.
+  static constexpr int32_t kMixedGroups = -2;
+  std::vector<int32_t> body_group_;  // (bodies)
   // Whether candidate i certainly stays apart on the whole motion x -> x1_, from its bodies'
   // largest motions alone (earliest_impacts' first test, before the pair's vertices are read).
   bool bodies_stay_apart(int64_t i) const;
