@@ -232,13 +232,6 @@ class BarrierPotential {
   // masked search and stays inside its capsule: the list then covers the motion already. (An
   // affine body's nodes are points of no pair: their radius is +inf and they never count.)
   bool covered_by_last_sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) const;
-  // Whether the moving vertices of the bodies with a moving vertex outside its capsule are few
-  // (a quarter of the moving ones at most): then left_ flags them, and partial_from_ and
-  // partial_to_ hold the motion of the search of their pairs (theirs along x -> x1_, the other
-  // moving vertices' their capsules' segments).
-  bool few_left_capsules(const double* x, const double* p, const uint8_t* moving, const double* pad);
-  std::vector<uint8_t> body_left_, left_;          // (bodies), (num_vertices)
-  std::vector<double> partial_from_, partial_to_;  // (3n)
   // group_max_steps' pass over the pairs of x -> x1_, lowering alpha; with set_links_aside, the
   // pairs linking groups are listed in links_ instead (linked_max_steps).
   void earliest_impacts(const double* x, const int32_t* group_of_vertex, double* alpha, bool set_links_aside);

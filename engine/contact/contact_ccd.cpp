@@ -32,10 +32,6 @@ constexpr double kCcdGapFraction = 0.1;
 // swept segment and still be covered by the sweep's pairs (BarrierPotential::sweep).
 constexpr double kSweepSkin = 0.5;
 
-// A masked sweep searches only the bodies that left their capsules when their moving vertices are
-// at most this fraction of all the moving ones (few_left_capsules).
-constexpr int64_t kFewLeft = 4;
-
 // skin_radius_ of an affine body's nodes (p and the columns of A): points of no pair, so their
 // motion never needs a search.
 constexpr double kNoPoint = std::numeric_limits<double>::infinity();
@@ -72,43 +68,6 @@ bool BarrierPotential::covered_by_last_sweep(const double* x, const double* p, c
   return true;
 }
 
-bool BarrierPotential::few_left_capsules(const double* x, const double* p, const uint8_t* moving, const double* pad) {
-  if (!skin_valid_) return false;
-  // The bodies with a moving vertex outside its capsule (or without one: not moving in that
-  // search, or a tet body's vertex), and how many moving vertices they have.
-  const int32_t nv = model_.num_vertices;
-  body_left_.assign(model_.bodies.size(), 0);
-  int64_t num_moving = 0;
-  for (int32_t v = 0; v < nv; ++v) {
-    if (!moving[v] || skin_radius_[v] == kNoPoint) continue;
-    ++num_moving;
-    const double radius = skin_radius_[v] - (pad ? pad[v] : 0.0);
-    const Eigen::Vector3d a = point(skin_from_.data(), v), b = point(skin_to_.data(), v);
-    const Eigen::Vector3d q0 = point(x, v), q1 = q0 + point(p, v);
-    const bool inside = skin_radius_[v] >= 0.0 && radius >= 0.0 && point_edge_distance(q0, a, b) <= radius * radius &&
-                        point_edge_distance(q1, a, b) <= radius * radius;
-    if (!inside) body_left_[model_.vertex_body[v]] = 1;
-  }
-  left_.assign(nv, 0);
-  int64_t num_left = 0;
-  for (int32_t v = 0; v < nv; ++v)
-    if (moving[v] && body_left_[model_.vertex_body[v]]) left_[v] = 1, ++num_left;
-  if (num_left * kFewLeft > num_moving) return false;
-  // The searched bodies move along x -> x1_; the others' boxes are their capsules' segments
-  // (widened by their radii as pads), or where they stand.
-  const int64_t n = model_.num_dofs();
-  partial_from_.assign(x, x + n);
-  partial_to_.assign(x1_.begin(), x1_.end());
-  for (int32_t v = 0; v < nv; ++v) {
-    if (left_[v] || !moving[v] || skin_radius_[v] < 0.0 || skin_radius_[v] == kNoPoint) continue;
-    for (int d = 0; d < 3; ++d) {
-      partial_from_[3 * int64_t{v} + d] = skin_from_[3 * int64_t{v} + d];
-      partial_to_[3 * int64_t{v} + d] = skin_to_[3 * int64_t{v} + d];
-    }
-  }
-  return true;
-}
-
 void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* moving, const double* pad) {
   ProfileScope scope(profile_, StepPhase::ccd);  // the candidate search inside is broad phase
   const int64_t n = model_.num_dofs();
@@ -127,48 +86,25 @@ void BarrierPotential::sweep(const double* x, const double* p, const uint8_t* mo
   // pairs are searched in its co-moving frame, whose capsules this does not track).
   const int32_t nv = model_.num_vertices;
   const double skin = kSweepSkin * dhat_;
-  // Where only a few bodies left their capsules, only their pairs are searched again, against
-  // the others' capsules (each vertex's box holds all of its capsule): every pair kept, whose
-  // vertices are all still inside their capsules, and every pair found stay covered.
-  const uint8_t* searched = moving;
-  const double* from = x;
-  const double* to = x1_.data();
-  if (few_left_capsules(x, p, moving, pad)) {
-    searched = left_.data();
-    from = partial_from_.data();
-    to = partial_to_.data();
-  }
   skinned_pad_.resize(nv);
+  skin_from_.assign(x, x + n);
+  skin_to_.assign(x1_.begin(), x1_.end());
   skin_radius_.resize(nv);
-  skin_from_.resize(n);
-  skin_to_.resize(n);
   for (int32_t v = 0; v < nv; ++v) {
     const double own = pad ? pad[v] : 0.0;
-    if (searched != moving && !searched[v]) {
-      // Its capsule, or where it stands; a still vertex's pairs were searched where it stands,
-      // so it has no capsule any more.
-      const bool capsule = moving[v] && skin_radius_[v] >= 0.0 && skin_radius_[v] != kNoPoint;
-      skinned_pad_[v] = capsule ? skin_radius_[v] : 0.0;
-      if (!moving[v] && skin_radius_[v] != kNoPoint) skin_radius_[v] = -1.0;
-      continue;
-    }
     const bool skinned = moving[v] && model_.follows_body(v) && model_.dirichlet[v] < 0;
     skinned_pad_[v] = skinned ? own + skin : own;
     const bool node = !model_.follows.empty() && (model_.follows[v] == Model::kCentreNode || model_.axis_node(v));
     skin_radius_[v] = node ? kNoPoint : skinned ? own + skin : -1.0;
-    for (int d = 0; d < 3; ++d) {
-      skin_from_[3 * int64_t{v} + d] = x[3 * int64_t{v} + d];
-      skin_to_[3 * int64_t{v} + d] = x1_[3 * int64_t{v} + d];
-    }
   }
   skin_valid_ = true;
   // Pairs of vertices that stay put keep their candidates: none of them moved since the last
-  // search, and that search covered where they are now. Only pairs with a searched vertex are
+  // search, and that search covered where they are now. Only pairs with a moving vertex are
   // searched again; the two sets are disjoint, and merging keeps the lists sorted.
-  find_contact_candidates(model_, from, to, 0.5 * dhat_, fresh_, searched, skinned_pad_.data());
+  find_contact_candidates(model_, x, x1_.data(), 0.5 * dhat_, fresh_, moving, skinned_pad_.data());
   auto still = [&](const PairVertices& vertices) {
     for (int32_t v : vertices)
-      if (v >= 0 && searched[v]) return false;
+      if (v >= 0 && moving[v]) return false;
     return true;
   };
   // Each list becomes its kept pairs merged with the fresh ones; origin_ records where each
